@@ -1,0 +1,315 @@
+"""Global planning in one call: validate, search, refine, measure.
+
+:class:`GlobalPlanner` binds a :class:`~fusion_planner.core.grid.GridMap` and a
+:class:`PlannerConfig`; it prepares the inflated search grid once and reuses
+it for every plan on that map. :func:`plan_path` is the one-call form.
+
+Examples
+--------
+>>> import numpy as np
+>>> occupied = np.zeros((20, 20), bool); occupied[5:15, 10] = True
+>>> result = plan_path(occupied, start=(2.5, 10.5), goal=(17.5, 10.5))
+>>> result.path[0].tolist(), result.path[-1].tolist()
+([2.5, 10.5], [17.5, 10.5])
+>>> bool(result.metrics.length_m < 20.0)
+True
+"""
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from fusion_planner.core import metrics, refine, search
+from fusion_planner.core.errors import (
+    GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
+from fusion_planner.core.grid import GridMap
+
+ALGORITHMS = ('dijkstra', 'astar', 'improved')
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Everything that tunes a global plan.
+
+    Attributes
+    ----------
+    algorithm : str
+        ``'dijkstra'``, ``'astar'`` or ``'improved'`` (the paper's improved A*).
+    neighbourhood : int
+        4, 8 or 16.
+    heuristic : str or None
+        ``'manhattan'``, ``'euclidean'`` or ``'octile'``; None picks the
+        tightest admissible one for the neighbourhood (ignored by Dijkstra).
+    alpha, beta, gamma : float
+        Improved A* weights of eqs. (5)-(8): g weight, h weight, gain of the
+        distance-dependent heuristic weight w_n.
+    refine : bool
+        Remove redundant nodes and smooth (section 1.3.3, Table 2).
+    robot_radius : float
+        Robot radius [m]; obstacles are inflated by it for the search.
+    safety_distance : float
+        Extra distance [m] a shortcut must keep from obstacles (1.3.3).
+    path_spacing : float or None
+        Spacing [m] of the points of a refined path; None: half a cell.
+    max_expansions : int or None
+        Search budget in expansions.
+    time_limit_s : float or None
+        Search budget in wall time [s].
+    """
+
+    algorithm: str = 'improved'
+    neighbourhood: int = 8
+    heuristic: str = None
+    alpha: float = 1.0
+    beta: float = 1.0
+    gamma: float = 0.1
+    refine: bool = True
+    robot_radius: float = 0.0
+    safety_distance: float = 0.0
+    path_spacing: float = None
+    max_expansions: int = None
+    time_limit_s: float = None
+
+    def __post_init__(self):
+        if self.algorithm not in ALGORITHMS:
+            raise InvalidInput(f'algorithm must be one of {ALGORITHMS}, got {self.algorithm!r}')
+        for name in ('robot_radius', 'safety_distance'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InvalidInput(f'{name} must be a non-negative number of metres, got {value!r}')
+        self.policy()  # validates neighbourhood, heuristic and weights
+
+    def policy(self):
+        """The :class:`~fusion_planner.core.search.SearchPolicy` of this config."""
+        if self.algorithm == 'dijkstra':
+            return search.dijkstra(self.neighbourhood)
+        if self.algorithm == 'astar':
+            return search.astar(self.neighbourhood, self.heuristic)
+        return search.improved_astar(
+            alpha=self.alpha, beta=self.beta, gamma=self.gamma,
+            neighbourhood=self.neighbourhood, heuristic=self.heuristic or 'octile')
+
+
+@dataclass
+class PlanMetrics:
+    """Figures of one plan (the columns of the paper's Tables 1-2 and more).
+
+    Attributes
+    ----------
+    length_m : float
+        Path length [m].
+    expanded : int
+        Nodes expanded by the search ("search nodes" of Table 1).
+    generated : int
+        Nodes ever opened by the search.
+    key_points : int
+        Key nodes of the path: endpoints and turning points.
+    turning_deg : float
+        Total absolute heading change along the path [deg].
+    min_clearance_m : float
+        Smallest clearance [m] of a cell the path touches (cell-centre
+        distance to the nearest obstacle cell centre).
+    time_s : float
+        Wall time of validation, search and refinement [s].
+    """
+
+    length_m: float
+    expanded: int
+    generated: int
+    key_points: int
+    turning_deg: float
+    min_clearance_m: float
+    time_s: float
+
+
+@dataclass
+class PlanResult:
+    """A global plan.
+
+    Attributes
+    ----------
+    path : ndarray, float64, shape (N, 2)
+        The path [m], map frame, start to goal (refined when configured).
+    key_nodes : ndarray, float64, shape (K, 2)
+        Key nodes [m]: the pruned nodes of a refined path, or the turning
+        points of a raw grid path; the A* sub-goals of the fusion follower.
+    grid_path : ndarray, float64, shape (M, 2)
+        The raw search path through cell centres [m].
+    metrics : PlanMetrics
+    expanded_cells : ndarray, int64, shape (E, 2) or None
+        ``(row, col)`` of the expanded cells, when requested.
+    """
+
+    path: np.ndarray
+    key_nodes: np.ndarray
+    grid_path: np.ndarray
+    metrics: PlanMetrics
+    expanded_cells: np.ndarray = field(default=None, repr=False)
+
+
+class GlobalPlanner:
+    """Improved-A* (or classic) global planner bound to one map.
+
+    Parameters
+    ----------
+    grid : GridMap
+    config : PlannerConfig, optional
+
+    Notes
+    -----
+    Inflation and the padded search grid are built on the first plan and
+    reused while the map and the robot radius stay the same.
+    """
+
+    def __init__(self, grid, config=None):
+        if not isinstance(grid, GridMap):
+            raise InvalidInput('the planner needs a GridMap')
+        self.grid = grid
+        self.config = config or PlannerConfig()
+        self._padded = None
+        self._padded_radius = None
+
+    def reconfigure(self, **changes):
+        """Replace configuration fields (validated); keeps the map preparation."""
+        self.config = replace(self.config, **changes)
+
+    def _search_grid(self):
+        radius = self.config.robot_radius
+        if self._padded is None or self._padded_radius != radius:
+            self._padded = search.PaddedGrid(self.grid.traversable(radius))
+            self._padded_radius = radius
+        return self._padded
+
+    def plan(self, start, goal, cancel=None, return_expanded=False):
+        """Plan from ``start`` to ``goal``.
+
+        Parameters
+        ----------
+        start, goal : array_like, shape (2,)
+            ``(x, y)`` [m], map frame.
+        cancel : callable, optional
+            Polled during the search; True stops it.
+        return_expanded : bool
+            Keep the expanded cells (for drawing).
+
+        Returns
+        -------
+        PlanResult
+
+        Raises
+        ------
+        InvalidInput
+            NaN or infinite coordinates.
+        StartOutsideMapBounds, GoalOutsideMapBounds
+        StartOccupied
+            The start is in an obstacle (a start inside the inflation only is
+            accepted, so a robot pushed close to a wall can still get away).
+        GoalOccupied
+            The goal is in an obstacle or its inflation.
+        NoValidPathCouldBeFound, PlannerTimedOut, PlannerCancelled
+            From the search.
+        """
+        t0 = time.perf_counter()
+        cfg = self.config
+        grid = self.grid
+        start_cell, goal_cell = self.cells_of(start, goal)
+        padded = self._search_grid()
+        found = search.grid_search(
+            padded, start_cell, goal_cell, cfg.policy(),
+            max_expansions=cfg.max_expansions, time_limit_s=cfg.time_limit_s,
+            cancel=cancel, return_expanded=return_expanded)
+        grid_path = grid.world_of(found.cells)
+        if cfg.refine and len(grid_path) > 2:
+            # Where the search path itself runs inside the safety margin (it
+            # hugs the inflation), shortcuts may keep the margin it had.
+            key_nodes = refine.prune_redundant(
+                grid, grid_path, cfg.robot_radius, cfg.safety_distance,
+                tolerate_input_margin=True)
+            spacing = cfg.path_spacing or grid.resolution / 2
+            path = refine.smooth_path(
+                grid, key_nodes, cfg.robot_radius, cfg.safety_distance, spacing)
+        else:
+            key_nodes = grid_path[metrics.key_point_indices(grid_path)]
+            path = grid_path
+        elapsed = time.perf_counter() - t0
+        plan_metrics = PlanMetrics(
+            length_m=metrics.path_length(path),
+            expanded=found.expanded,
+            generated=found.generated,
+            key_points=len(key_nodes),
+            turning_deg=metrics.turning_angle_deg(path),
+            min_clearance_m=metrics.min_clearance(grid, path),
+            time_s=elapsed)
+        return PlanResult(path=path, key_nodes=key_nodes, grid_path=grid_path,
+                          metrics=plan_metrics, expanded_cells=found.expanded_cells)
+
+    def cells_of(self, start, goal):
+        """Validate start and goal [m]; return their ``(row, col)`` cells.
+
+        Raises the same errors as :meth:`plan` for bad endpoints.
+        """
+        grid = self.grid
+        start_cell = tuple(int(v) for v in grid.cell_of(_point(start, 'start')))
+        goal_cell = tuple(int(v) for v in grid.cell_of(_point(goal, 'goal')))
+        if not grid.contains(start_cell):
+            raise StartOutsideMapBounds(f'start {_fmt(start)} is outside the map')
+        if not grid.contains(goal_cell):
+            raise GoalOutsideMapBounds(f'goal {_fmt(goal)} is outside the map')
+        if grid.occupied[start_cell]:
+            raise StartOccupied(f'start {_fmt(start)} is inside an obstacle')
+        if grid.occupied[goal_cell]:
+            raise GoalOccupied(f'goal {_fmt(goal)} is inside an obstacle')
+        if not grid.traversable(self.config.robot_radius)[goal_cell]:
+            raise GoalOccupied(
+                f'goal {_fmt(goal)} is closer to an obstacle than the robot radius '
+                f'{self.config.robot_radius:g} m')
+        return start_cell, goal_cell
+
+
+def plan_path(occupancy, start, goal, resolution=1.0, origin=(0.0, 0.0, 0.0), config=None,
+              **config_fields):
+    """Plan on an occupancy array or a loaded map in one call.
+
+    Parameters
+    ----------
+    occupancy : GridMap or array_like of bool, shape (H, W)
+        A map, or True where a cell is an obstacle (row 0 at the origin).
+    start, goal : array_like, shape (2,)
+        ``(x, y)`` [m], map frame.
+    resolution : float
+        Cell edge [m] when ``occupancy`` is an array.
+    origin : tuple of float
+        ``(x, y, yaw)`` of the map origin when ``occupancy`` is an array.
+    config : PlannerConfig, optional
+    **config_fields
+        Overrides of :class:`PlannerConfig` fields, e.g. ``algorithm='astar'``.
+
+    Returns
+    -------
+    PlanResult
+
+    Raises
+    ------
+    PlanningError
+        Any of the errors of :meth:`GlobalPlanner.plan`.
+    """
+    grid = occupancy if isinstance(occupancy, GridMap) else GridMap(occupancy, resolution, origin)
+    config = replace(config or PlannerConfig(), **config_fields)
+    return GlobalPlanner(grid, config).plan(start, goal)
+
+
+def _point(value, name):
+    try:
+        point = np.asarray(value, dtype=float).reshape(2)
+    except (TypeError, ValueError):
+        raise InvalidInput(f'{name} must be two numbers (x, y), got {value!r}') from None
+    if not np.all(np.isfinite(point)):
+        raise InvalidInput(f'{name} must be finite, got {point.tolist()}')
+    return point
+
+
+def _fmt(point):
+    x, y = np.asarray(point, dtype=float).reshape(2)
+    return f'({x:.3f}, {y:.3f})'

@@ -1,0 +1,395 @@
+"""Secondary optimisation of a grid path: redundant nodes, then smoothing.
+
+Section 1.3.3 of the paper removes redundant nodes of the A* path: a node is
+deleted when the straight line that would replace it keeps at least the
+safety distance from every obstacle. Table 2 then reports a path that is
+shorter than the grid-optimal one after "smoothing", so the second step
+turns the pruned polyline into an any-angle path with rounded corners.
+
+Safety is judged on cells (see :mod:`raster`): a segment is *safe* when
+every cell it touches lies inside the map and has a clearance (cell-centre
+distance to the nearest obstacle cell centre) greater than the robot radius
+and at least the robot radius plus the safety distance.
+
+The guarantees, for an input path that the search produced on
+``grid.traversable(robot_radius)``:
+
+- the output starts and ends at the input's ends, exactly;
+- it never touches a cell with clearance ``<= robot_radius`` or outside the
+  map unless the input did, and its smallest clearance is at least the
+  smaller of the input's and ``robot_radius + safety_distance``;
+- it is never longer than the input and never has more key nodes than the
+  input has key points (ends and turning vertices).
+"""
+
+import logging
+import math
+
+import numpy as np
+
+from fusion_planner.core import metrics, raster
+from fusion_planner.core.errors import InvalidInput
+
+_LOG = logging.getLogger(__name__)
+
+#: Turns smaller than this [rad] are treated as straight (no curve).
+MIN_TURN_RAD = 1e-6
+#: Largest heading change [rad] between two chords of a sampled corner arc.
+MAX_CHORD_TURN_RAD = math.radians(5.0)
+#: How many times the tangent length of a corner is halved before the
+#: corner is left sharp.
+MAX_SHRINK_STEPS = 6
+#: Upper bound on the chords of one corner arc or points of one straight
+#: piece, whatever the spacing asked for.
+MAX_SAMPLES_PER_PIECE = 100_000
+#: Points closer than this [m] are the same point.
+SAME_POINT_M = 1e-12
+
+
+def _is_finite_number(value):
+    """True for a real finite number (bool excluded)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    return math.isfinite(value)
+
+
+def _check_distances(robot_radius, safety_distance):
+    for name, value in (('robot_radius', robot_radius), ('safety_distance', safety_distance)):
+        if not _is_finite_number(value) or value < 0:
+            raise InvalidInput(f'{name} must be a non-negative number of metres, got {value!r}')
+    return float(robot_radius), float(safety_distance)
+
+
+def _is_safe(clearance, robot_radius, needed):
+    """Elementwise safety test: clearance [m] ``> robot_radius`` and ``>= needed``."""
+    return (clearance > robot_radius) & (clearance >= needed)
+
+
+def segment_is_safe(grid, a, b, robot_radius, safety_distance):
+    """Whether a straight segment keeps the safety distance from obstacles.
+
+    Parameters
+    ----------
+    grid : GridMap
+    a, b : array_like, shape (2,)
+        Segment ends ``(x, y)`` [m], map frame.
+    robot_radius : float
+        Robot radius [m], >= 0.
+    safety_distance : float
+        Extra distance [m] to keep beyond the radius, >= 0 (section 1.3.3).
+
+    Returns
+    -------
+    bool
+        True when every cell the segment touches (:func:`raster.segment_cells`)
+        is inside the map and has clearance ``> robot_radius`` and
+        ``>= robot_radius + safety_distance``.
+
+    Raises
+    ------
+    InvalidInput
+        If an end is not finite or a distance is negative or not a number.
+
+    Notes
+    -----
+    This is the test of step 1) of section 1.3.3 ("judge the distance
+    between the connection line and the obstacle"), at cell resolution.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fusion_planner.core.grid import GridMap
+    >>> occupied = np.zeros((5, 5), bool); occupied[2, 2] = True
+    >>> grid = GridMap(occupied, resolution=1.0)
+    >>> segment_is_safe(grid, (0.5, 0.5), (4.5, 0.5), 0.0, 1.5)
+    True
+    >>> segment_is_safe(grid, (0.5, 0.5), (4.5, 0.5), 0.0, 2.5)
+    False
+    """
+    r, s = _check_distances(robot_radius, safety_distance)
+    return bool(_is_safe(raster.segment_clearance(grid, a, b), r, r + s))
+
+
+def _farthest_safe(grid, pts, i, r, needed):
+    """Index of a far node reachable from node ``i`` by a safe segment.
+
+    ``needed[k]`` is the clearance [m] the segment ``i -> i + 1 + k`` must
+    keep. Assumes the step ``i -> i + 1`` is safe. Probes ``i + 1, i + 2,
+    i + 4, ...`` and the last node in one batch, takes the farthest safe
+    probe, then bisects towards the next (unsafe) probe. The result ``j``
+    has a safe segment ``i -> j`` and is never before the end of the run of
+    consecutive nodes reachable from ``i``.
+    """
+    n = len(pts)
+    probes = [i + 1]
+    step = 2
+    while i + step < n - 1:  # bounded: step doubles
+        probes.append(i + step)
+        step *= 2
+    if probes[-1] != n - 1:
+        probes.append(n - 1)
+    probes = np.array(probes)
+    clearance = raster.segments_clearance(
+        grid, np.repeat(pts[i:i + 1], len(probes), axis=0), pts[probes])
+    ok = _is_safe(clearance, r, needed[probes - i - 1])
+    ok[0] = True
+    best = int(np.flatnonzero(ok)[-1])
+    if best == len(probes) - 1:
+        return int(probes[best])
+    lo, hi = int(probes[best]), int(probes[best + 1])
+    while hi - lo > 1:  # bounded: bisection
+        mid = (lo + hi) // 2
+        if _is_safe(raster.segment_clearance(grid, pts[i], pts[mid]), r, needed[mid - i - 1]):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def _prune(grid, pts, r, s, tolerate_input_margin):
+    """Greedy redundant-node removal over all of ``pts``; indices kept."""
+    n = len(pts)
+    step_clearance = raster.segments_clearance(grid, pts[:-1], pts[1:])
+    kept = [0]
+    i = 0
+    while i < n - 1:  # bounded: i grows every pass
+        if tolerate_input_margin:
+            # A shortcut must keep r + s, or as much as the steps it replaces.
+            needed = np.minimum(np.minimum.accumulate(step_clearance[i:]), r + s)
+        else:
+            needed = np.full(n - 1 - i, r + s)
+        if _is_safe(step_clearance[i], r, needed[0]):
+            i = _farthest_safe(grid, pts, i, r, needed)
+        else:
+            i += 1  # the original step: never less safe than the input
+        kept.append(i)
+    return np.array(kept)
+
+
+def prune_redundant(grid, points, robot_radius, safety_distance, tolerate_input_margin=False):
+    """Remove redundant nodes of a grid path (paper section 1.3.3).
+
+    Parameters
+    ----------
+    grid : GridMap
+    points : array_like, shape (N, 2)
+        The search path through cell centres ``(x, y)`` [m], map frame,
+        N >= 1; traversable for ``robot_radius`` but possibly closer to
+        obstacles than the safety distance.
+    robot_radius : float
+        Robot radius [m], >= 0.
+    safety_distance : float
+        Distance [m] beyond the radius a shortcut must keep, >= 0.
+    tolerate_input_margin : bool
+        False (the paper's rule): a shortcut must keep
+        ``robot_radius + safety_distance``. True: where the input path
+        itself runs closer than that, a shortcut need only keep the
+        smallest clearance of the input steps it replaces (still
+        ``> robot_radius``). See Notes.
+
+    Returns
+    -------
+    ndarray, float64, shape (K, 2)
+        The kept nodes, a subsequence of ``points`` with the first and last
+        always kept and no collinear interior node; ``K`` is at most the
+        number of key points (:func:`metrics.key_point_indices`) of the
+        input.
+
+    Raises
+    ------
+    InvalidInput
+        If ``points`` is not a finite ``(N, 2)`` array or a distance is
+        negative.
+
+    Notes
+    -----
+    The paper's rule (1.3.3): of three consecutive nodes, join the first
+    to the third; keep the middle one only when that line passes closer to
+    an obstacle than the safety distance (:func:`segment_is_safe` is false).
+    Applied greedily, from an anchor node the path jumps to the farthest
+    later node reachable by a safe segment (found by doubling then
+    bisection, so O(log N) segment tests per kept node; never short of the
+    run of nodes the sequential triple rule would delete), keeps it and
+    repeats from there. When even the step to the next node is unsafe (the
+    search path runs inside the safety distance), that next node is kept,
+    so the original step is used and the result is never less safe than
+    the input. Collinear kept nodes are then dropped (the joined segment
+    touches the same cells). If this leaves more nodes than the input has
+    key points, the same procedure is run on the input's key points alone,
+    which cannot.
+
+    A search path on an inflated grid hugs the inflation, so with a
+    positive safety distance many of its nodes lie inside the margin and
+    no segment starting there can be safe: the paper's rule then keeps
+    almost every key point. ``tolerate_input_margin=True`` relaxes the
+    rule only there (the needed clearance of a shortcut over nodes
+    ``i..j`` is ``min(robot_radius + safety_distance, c_ij)`` with
+    ``c_ij`` the smallest clearance of the input steps ``i..j``); the
+    smallest clearance of the result stays at least
+    ``min(input clearance, robot_radius + safety_distance)`` either way.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fusion_planner.core.grid import GridMap
+    >>> grid = GridMap(np.zeros((4, 4), bool), resolution=1.0)
+    >>> stairs = [[0.5, 0.5], [1.5, 0.5], [1.5, 1.5], [2.5, 1.5], [2.5, 2.5]]
+    >>> prune_redundant(grid, stairs, 0.0, 0.0).tolist()
+    [[0.5, 0.5], [2.5, 2.5]]
+    """
+    pts = raster.as_polyline(points, 'points')
+    r, s = _check_distances(robot_radius, safety_distance)
+    if len(pts) <= 2:
+        return pts.copy()
+    pruned = pts[_prune(grid, pts, r, s, tolerate_input_margin)]
+    pruned = pruned[metrics.key_point_indices(pruned)]
+    key = pts[metrics.key_point_indices(pts)]
+    if len(pruned) > len(key):
+        _LOG.debug('pruning all %d nodes kept %d > %d key points; pruning the key points',
+                   len(pts), len(pruned), len(key))
+        pruned = key[_prune(grid, key, r, s, tolerate_input_margin)]
+        pruned = pruned[metrics.key_point_indices(pruned)]
+    return pruned
+
+
+def _sample_line(p, q, spacing):
+    """Points from ``p`` (included) towards ``q`` (excluded), ~spacing apart."""
+    length = math.hypot(q[0] - p[0], q[1] - p[1])
+    if length <= SAME_POINT_M:
+        return np.empty((0, 2))
+    count = min(max(math.ceil(length / spacing), 1), MAX_SAMPLES_PER_PIECE)
+    t = np.arange(count) / count
+    return p + t[:, None] * (q - p)
+
+
+def _corner_arc(q0, u_in, turn, sign, tangent, spacing):
+    """Circular arc tangent to both legs, from ``q0`` over ``turn`` [rad].
+
+    Returns the sampled arc, shape (m + 1, 2), first point ``q0``.
+    """
+    radius = tangent / math.tan(turn / 2)
+    normal = sign * np.array([-u_in[1], u_in[0]])  # towards the inside of the turn
+    centre = q0 + radius * normal
+    chords = max(math.ceil(radius * turn / spacing), math.ceil(turn / MAX_CHORD_TURN_RAD), 1)
+    chords = min(chords, MAX_SAMPLES_PER_PIECE)
+    phi = sign * turn * np.arange(chords + 1) / chords
+    v0 = q0 - centre
+    cos, sin = np.cos(phi), np.sin(phi)
+    arc = centre + np.stack([cos * v0[0] - sin * v0[1], sin * v0[0] + cos * v0[1]], axis=1)
+    arc[0] = q0
+    return arc
+
+
+def _round_corner(grid, a, p, b, r, s, spacing):
+    """The verified rounded corner at ``p`` between legs a-p and p-b.
+
+    Returns points from the arc start to the arc end (both included), or
+    ``p`` alone when the corner stays sharp.
+    """
+    len_in = math.hypot(*(p - a))
+    len_out = math.hypot(*(b - p))
+    u_in = (p - a) / len_in
+    u_out = (b - p) / len_out
+    cross = u_in[0] * u_out[1] - u_in[1] * u_out[0]
+    turn = math.atan2(abs(cross), float(np.dot(u_in, u_out)))
+    if turn < MIN_TURN_RAD or turn > math.pi - MIN_TURN_RAD:
+        return p[None, :]
+    sign = 1.0 if cross > 0 else -1.0
+    tangent = 0.5 * min(len_in, len_out)
+    for _ in range(MAX_SHRINK_STEPS + 1):  # bounded: halving
+        q0 = p - tangent * u_in
+        q2 = p + tangent * u_out
+        arc = _corner_arc(q0, u_in, turn, sign, tangent, spacing)
+        arc[-1] = q2
+        legs = raster.segments_clearance(grid, np.stack([q0, p]), np.stack([p, q2]))
+        need = min(float(legs.min()), r + s)
+        got = metrics.min_clearance(grid, arc)
+        if got > r and got >= need:
+            return arc
+        tangent *= 0.5
+    _LOG.debug('corner at (%.3f, %.3f) left sharp: no arc keeps the clearance', p[0], p[1])
+    return p[None, :]
+
+
+def smooth_path(grid, key_nodes, robot_radius, safety_distance, spacing):
+    """Round the corners of a pruned path and sample it evenly.
+
+    Parameters
+    ----------
+    grid : GridMap
+    key_nodes : array_like, shape (K, 2)
+        Pruned polyline ``(x, y)`` [m], map frame, K >= 1 (the output of
+        :func:`prune_redundant`).
+    robot_radius : float
+        Robot radius [m], >= 0.
+    safety_distance : float
+        Safety distance [m] beyond the radius, >= 0.
+    spacing : float
+        Target distance [m] between consecutive output points, > 0.
+
+    Returns
+    -------
+    ndarray, float64, shape (M, 2)
+        The smoothed path [m], map frame; first and last points are exactly
+        ``key_nodes[0]`` and ``key_nodes[-1]``; points are at most
+        ``spacing`` apart (arcs may be sampled more densely, so that no two
+        chords differ in heading by more than 5 degrees).
+
+    Raises
+    ------
+    InvalidInput
+        If ``key_nodes`` is not a finite ``(K, 2)`` array, a distance is
+        negative or ``spacing`` is not a positive number.
+
+    Notes
+    -----
+    Our reading of the "smoothing" of Table 2 (section 3.1): each interior
+    corner is replaced by the circular arc tangent to both legs at distance
+    ``d`` from the corner (radius ``d / tan(theta / 2)`` for a turn of
+    ``theta``), with ``d`` at most half of each leg so that neighbouring
+    arcs never overlap. A circular arc was chosen over a Bezier curve for
+    its constant curvature (the robot turns at one rate through a corner).
+    An arc is always shorter than the two leg pieces it replaces and turns
+    by the same total angle, so smoothing never lengthens the path nor adds
+    turning. Each arc, as the sampled polyline that is returned, is checked
+    with :mod:`raster`: it must touch only map cells with clearance
+    ``> robot_radius`` and no less than the smaller of the clearance of the
+    leg pieces it replaces and ``robot_radius + safety_distance``;
+    otherwise ``d`` is halved, at most 6 times, and then the corner is
+    left sharp. Straight pieces lie on the pruned segments, so they touch
+    no new cell.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fusion_planner.core.grid import GridMap
+    >>> grid = GridMap(np.zeros((10, 10), bool), resolution=1.0)
+    >>> path = smooth_path(grid, [[0.5, 0.5], [8.5, 0.5], [8.5, 8.5]], 0.0, 0.0, 0.5)
+    >>> path[0].tolist(), path[-1].tolist()
+    ([0.5, 0.5], [8.5, 8.5])
+    >>> bool(np.hypot(*np.diff(path, axis=0).T).max() <= 0.5 + 1e-9)
+    True
+    """
+    nodes = raster.as_polyline(key_nodes, 'key nodes')
+    r, s = _check_distances(robot_radius, safety_distance)
+    if not _is_finite_number(spacing) or spacing <= 0:
+        raise InvalidInput(f'spacing must be a positive number of metres, got {spacing!r}')
+    spacing = float(spacing)
+    steps = np.hypot(*np.diff(nodes, axis=0).T)
+    pts = nodes[np.concatenate([[True], steps > SAME_POINT_M])]
+    if len(pts) == 1:
+        return nodes[[0, -1]] if len(nodes) > 1 else nodes.copy()
+    pts[-1] = nodes[-1]
+    pieces = []
+    start = pts[0]
+    for i in range(1, len(pts) - 1):  # bounded: one pass over the corners
+        arc = _round_corner(grid, pts[i - 1], pts[i], pts[i + 1], r, s, spacing)
+        pieces.append(_sample_line(start, arc[0], spacing))
+        pieces.append(arc[:-1])
+        start = arc[-1]
+    pieces.append(_sample_line(start, pts[-1], spacing))
+    pieces.append(pts[-1:])
+    path = np.concatenate(pieces)
+    path = path[np.concatenate([[True], np.hypot(*np.diff(path, axis=0).T) > SAME_POINT_M])]
+    path[-1] = nodes[-1]
+    return path

@@ -1,0 +1,45 @@
+"""Build script of fusion_planner (ament_python layout, also pip-installable)."""
+
+import glob
+import os
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'fusion_planner'
+
+
+def share(folder):
+    """Install every file of a config sub-folder under share/fusion_planner."""
+    return (f'share/{PACKAGE}/{folder}', sorted(f for f in glob.glob(f'{folder}/*') if os.path.isfile(f)))
+
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    description='Improved A* global planner and improved APF local planner for ROS 2 Jazzy',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    packages=find_packages(exclude=['test', 'test.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
+        (f'share/{PACKAGE}', ['package.xml']),
+        share('config'),
+        share('config/maps'),
+        share('config/scenarios'),
+    ],
+    install_requires=['numpy', 'scipy', 'PyYAML'],
+    extras_require={
+        # The ROS 2 Jazzy wheels, for machines without a sourced ROS install.
+        'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        'plot': ['matplotlib', 'pillow'],
+        'test': ['pytest', 'pytest-timeout', 'hypothesis', 'matplotlib', 'pillow',
+                 'colcon-common-extensions'],
+    },
+    zip_safe=True,
+    entry_points={
+        'console_scripts': [
+            'fusion-planner = fusion_planner.cli.main:main',
+            'global_planner = fusion_planner.ros.global_planner:main',
+        ],
+    },
+)
