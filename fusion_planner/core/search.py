@@ -94,7 +94,7 @@ def astar(neighbourhood=8, heuristic=None):
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic)
 
 
-def improved_astar(alpha=1.0, beta=1.0, gamma=1.0, neighbourhood=8, heuristic='octile'):
+def improved_astar(alpha=1.0, beta=1.0, gamma=0.1, neighbourhood=8, heuristic='octile'):
     """Policy of the paper's improved A* (sections 1.3.1 and 1.3.2)."""
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic, alpha=alpha,
                         beta=beta, gamma=gamma, variable_neighbourhood=True)
