@@ -1,0 +1,516 @@
+"""ROS 2 node wrapping the improved A* global planner (paper section 1.3).
+
+Topics (relative names, so a namespace or a remap applies):
+
+- ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local, depth 1) in:
+  converted once per map into a :class:`~fusion_planner.core.grid.GridMap`
+  whose inflation and search grid are reused by every plan on it.
+- ``goal_pose`` (geometry_msgs/PoseStamped) in: plans from the latest robot
+  pose and publishes on ``plan``.
+- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``) or, with
+  ``pose_topic_type: pose_with_covariance``, ``amcl_pose``
+  (geometry_msgs/PoseWithCovarianceStamped) in: the start pose. Subscribed
+  best-effort, which matches reliable and best-effort publishers alike.
+- ``plan`` (nav_msgs/Path, reliable, transient_local) out: the smoothed
+  path; an *empty* path when planning for the current goal failed, so a
+  follower stops instead of driving an old plan.
+- ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
+  expanded cells when ``publish_expanded`` is set.
+- ``get_plan`` (nav_msgs/srv/GetPlan): plans between the request's poses
+  without touching ``plan``; an empty path on failure.
+- ``diagnostics`` out: outcome of each request (``succeeded`` or the
+  ``.outcome`` of the core error: ``start_outside_map``, ``goal_occupied``,
+  ``no_valid_path``, ``timeout`` ...; ``no_map`` and ``no_start_pose`` while
+  waiting), plan time and figures.
+
+Replanning happens on a new goal, on the first start pose after a goal that
+was waiting for one, and on a new map that leaves no valid plan: the current
+plan is re-checked against the new map from the robot's position on, and a
+path cell that was traversable and is not any more (or a changed map
+geometry) triggers a new plan.
+
+Goal tolerance (``goal_tolerance`` for ``goal_pose``, the request's
+``tolerance`` for ``get_plan``): when the goal lies in an obstacle or its
+inflation, the nearest traversable cell centre within the tolerance that is
+connected to the start is used instead (:func:`nearest_free_goal`).
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from nav_msgs.srv import GetPlan
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
+from scipy import ndimage
+from visualization_msgs.msg import Marker, MarkerArray
+
+from fusion_planner.core import raster
+from fusion_planner.core.errors import GoalOccupied, InvalidInput, PlanningError
+from fusion_planner.core.grid import DEFAULT_MAX_CELLS
+from fusion_planner.core.map_files import DEFAULT_OCCUPIED_THRESHOLD
+from fusion_planner.core.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
+from fusion_planner.ros import conversions as conv
+from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
+from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+
+NODE_NAME = 'global_planner'
+
+#: ``pose_topic_type`` values and the topic each one subscribes.
+POSE_TOPICS = {'odometry': 'odom', 'pose_with_covariance': 'amcl_pose'}
+
+#: QoS of ``map`` and ``plan``: latched (a late joiner gets the last one).
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: QoS of ``goal_pose``.
+GOAL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Queue depth of ``plan_markers`` [messages].
+MARKERS_DEPTH = 10
+
+#: Largest tolerance search radius [cells]; a larger tolerance is clipped to
+#: it so the search window stays (2 * 500 + 1)^2 cells at most.
+MAX_TOLERANCE_CELLS = 500
+#: Expanded cells drawn at most [1]; more are subsampled evenly.
+MAX_EXPANDED_MARKER_POINTS = 100_000
+#: Diameter of the key-node spheres [m].
+KEY_NODE_MARKER_SIZE_M = 0.15
+
+
+@dataclass(frozen=True)
+class GlobalPlannerParams:
+    """Tunables of the global planner node (see :data:`PARAMETER_SPECS`)."""
+
+    frame_id: str = 'map'
+    pose_topic_type: str = 'odometry'
+    algorithm: str = 'improved'
+    neighbourhood: int = 8
+    alpha: float = 1.0
+    beta: float = 1.0
+    gamma: float = 0.1
+    refine: bool = True
+    robot_radius: float = 0.2
+    safety_distance: float = 0.05
+    unknown_is_occupied: bool = True
+    occupied_threshold: int = DEFAULT_OCCUPIED_THRESHOLD
+    max_map_cells: int = DEFAULT_MAX_CELLS
+    planning_time_limit: float = 2.0
+    goal_tolerance: float = 0.5
+    publish_expanded: bool = False
+    diagnostics_period: float = 1.0
+
+    def __post_init__(self):
+        self.planner_config()  # the core validates algorithm, weights, radii
+
+    def planner_config(self):
+        """The :class:`PlannerConfig` these parameters describe."""
+        return PlannerConfig(
+            algorithm=self.algorithm, neighbourhood=self.neighbourhood,
+            alpha=self.alpha, beta=self.beta, gamma=self.gamma, refine=self.refine,
+            robot_radius=self.robot_radius, safety_distance=self.safety_distance,
+            time_limit_s=self.planning_time_limit)
+
+    def map_options(self):
+        """The fields that decide how an OccupancyGrid becomes a GridMap."""
+        return (self.frame_id, self.unknown_is_occupied, self.occupied_threshold,
+                self.max_map_cells)
+
+
+#: Every parameter of the node; config/params.yaml lists the same names.
+PARAMETER_SPECS = (
+    ParameterSpec('frame_id', 'map', 'frame of the map, poses and plan', read_only=True),
+    ParameterSpec('pose_topic_type', 'odometry',
+                  "source of the start pose: 'odometry' (nav_msgs/Odometry on odom) or "
+                  "'pose_with_covariance' (PoseWithCovarianceStamped on amcl_pose)",
+                  read_only=True, choices=tuple(POSE_TOPICS)),
+    ParameterSpec('algorithm', 'improved',
+                  "search algorithm: 'dijkstra', 'astar' or 'improved' (the paper's improved A*)",
+                  choices=ALGORITHMS),
+    ParameterSpec('neighbourhood', 8, 'search neighbourhood [cells]: 4, 8 or 16',
+                  int_range(4, 16, 4)),
+    ParameterSpec('alpha', 1.0, 'weight of the path cost g, eq. (5) [1]', float_range(0.01, 100.0)),
+    ParameterSpec('beta', 1.0, 'weight of the heuristic h, eq. (5) [1]', float_range(0.01, 100.0)),
+    ParameterSpec('gamma', 0.1, 'gain of the distance-dependent heuristic weight, eqs. (6)-(8) [1]',
+                  float_range(0.0, 100.0)),
+    ParameterSpec('refine', True, 'remove redundant nodes and smooth the path (section 1.3.3)'),
+    ParameterSpec('robot_radius', 0.2, 'robot radius; obstacles are inflated by it [m]',
+                  float_range(0.0, 10.0)),
+    ParameterSpec('safety_distance', 0.05,
+                  'extra distance a shortcut keeps from obstacles (section 1.3.3) [m]',
+                  float_range(0.0, 10.0)),
+    ParameterSpec('unknown_is_occupied', True, 'treat unknown map cells (-1) as obstacles'),
+    ParameterSpec('occupied_threshold', DEFAULT_OCCUPIED_THRESHOLD,
+                  'a map value at or above this is an obstacle [percent]', int_range(1, 100)),
+    ParameterSpec('max_map_cells', DEFAULT_MAX_CELLS,
+                  'maps with more cells are refused [cells]', int_range(1, 400_000_000)),
+    ParameterSpec('planning_time_limit', 2.0, 'wall-time budget of one search [s]',
+                  float_range(0.001, 600.0)),
+    ParameterSpec('goal_tolerance', 0.5,
+                  'a goal_pose in an obstacle moves to the nearest free cell within this [m]',
+                  float_range(0.0, 100.0)),
+    ParameterSpec('publish_expanded', False, 'draw the expanded cells on plan_markers'),
+    ParameterSpec('diagnostics_period', 1.0,
+                  'period of the diagnostics heartbeat; 0 publishes on events only [s]',
+                  float_range(0.0, 60.0), read_only=True),
+)
+
+
+def nearest_free_goal(grid, traversable, goal, tolerance, components=None, start_cell=None):
+    """The traversable cell centre nearest to ``goal`` within ``tolerance``.
+
+    Parameters
+    ----------
+    grid : GridMap
+    traversable : ndarray, bool, shape (H, W)
+        Cells the robot centre may occupy (``grid.traversable(radius)``).
+    goal : array_like, shape (2,)
+        ``(x, y)`` [m], map frame, inside the map.
+    tolerance : float
+        Largest distance [m] the goal may move, >= 0; searched over at most
+        :data:`MAX_TOLERANCE_CELLS` cells around the goal.
+    components : ndarray, int, shape (H, W), optional
+        4-connected component labels of ``traversable`` (0 = blocked). With
+        ``start_cell``, only cells of the start's component are candidates,
+        so the new goal is reachable.
+    start_cell : tuple of int, optional
+        ``(row, col)`` of the start.
+
+    Returns
+    -------
+    ndarray, float64, shape (2,) or None
+        The cell centre [m], map frame; None when no candidate lies within
+        the tolerance.
+
+    Notes
+    -----
+    Vectorised over a square window of cells around the goal: distances are
+    measured between the goal and cell centres in grid units (cells are
+    square, so the map's rotation does not matter). Components are
+    4-connected because the search never cuts corners: a diagonal or knight
+    step needs the cells it crosses free, so it connects nothing that
+    orthogonal steps do not.
+    """
+    col_f, row_f = grid.world_to_grid(np.asarray(goal, dtype=float))
+    reach = min(int(math.ceil(tolerance / grid.resolution)) + 1, MAX_TOLERANCE_CELLS)
+    r0, c0 = int(math.floor(row_f)), int(math.floor(col_f))
+    rows = slice(max(r0 - reach, 0), min(r0 + reach + 1, grid.height))
+    cols = slice(max(c0 - reach, 0), min(c0 + reach + 1, grid.width))
+    rr = np.arange(rows.start, rows.stop)[:, None]
+    cc = np.arange(cols.start, cols.stop)[None, :]
+    dist = grid.resolution * np.hypot(rr + 0.5 - row_f, cc + 0.5 - col_f)
+    ok = traversable[rows, cols] & (dist <= tolerance)
+    if components is not None and start_cell is not None:
+        label = components[start_cell]
+        if label > 0:
+            ok &= components[rows, cols] == label
+    if not ok.any():
+        return None
+    flat = np.flatnonzero(ok.ravel())
+    best = flat[np.argmin(dist.ravel()[flat])]
+    r, c = divmod(int(best), ok.shape[1])
+    return grid.world_of(np.array([rows.start + r, cols.start + c]))
+
+
+class GlobalPlannerNode(Node):
+    """The global planner node (see the module docstring for its interface).
+
+    Parameters
+    ----------
+    node_name : str
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``namespace``,
+        ``parameter_overrides``, ``cli_args`` ...).
+
+    Raises
+    ------
+    InvalidInput
+        If the start-up parameters are out of range or inconsistent.
+    """
+
+    def __init__(self, node_name=NODE_NAME, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self._params = ParameterHandler(self, GlobalPlannerParams, PARAMETER_SPECS)
+        params = self._params.current
+        self._frame_id = params.frame_id
+        self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        # Map state: the accepted message (kept to rebuild on a parameter
+        # change), the options it was converted with, its planner.
+        self._map_msg = None
+        self._map_options = None
+        self._planner = None
+        self._components = None  # (radius, labels) of the traversable mask
+        self._start = None  # (x, y, yaw) [m, m, rad]
+        self._goal = None  # (x, y, yaw) of the current goal_pose goal
+        self._waiting = False  # the current goal waits for a map or a start pose
+        self._plan = None  # (N, 2) published plan, None when none is valid
+
+        guard = self._diagnostics.guard
+        self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
+        self._markers_pub = self.create_publisher(MarkerArray, 'plan_markers', MARKERS_DEPTH)
+        self.create_subscription(OccupancyGrid, 'map', guard('map', self._on_map), LATCHED_QOS)
+        self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
+                                 GOAL_QOS)
+        if params.pose_topic_type == 'odometry':
+            self.create_subscription(Odometry, POSE_TOPICS['odometry'],
+                                     guard('odom', self._on_odometry), qos_profile_sensor_data)
+        else:
+            self.create_subscription(PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
+                                     guard('amcl_pose', self._on_pose_with_covariance),
+                                     qos_profile_sensor_data)
+        self.create_service(GetPlan, 'get_plan',
+                            guard('get_plan', self._on_get_plan, on_error=self._empty_response))
+        self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')
+
+    # -- callbacks ------------------------------------------------------------
+
+    def _on_map(self, msg):
+        """Accept a new map; replan when the current plan does not survive it."""
+        if self._same_map(msg):
+            return
+        old = self._planner
+        params = self._params.current
+        self._load_map(msg, params)
+        self.get_logger().info(
+            f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted')
+        if self._goal is None:
+            self._diagnostics.update(WARN, 'map accepted; waiting for a goal',
+                                     map_cells=msg.info.width * msg.info.height)
+            return
+        if self._plan is None or not self._plan_survives(old, params.robot_radius):
+            self._replan('map')
+
+    def _on_goal(self, msg):
+        """Plan to a new goal."""
+        self._goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        self._replan('goal_pose')
+
+    def _on_odometry(self, msg):
+        self._set_start(conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry'))
+
+    def _on_pose_with_covariance(self, msg):
+        self._set_start(conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose'))
+
+    def _set_start(self, pose):
+        self._start = pose
+        if self._waiting and self._map_msg is not None:
+            self._replan('start pose')
+
+    def _on_get_plan(self, request, response):
+        """Serve nav_msgs/srv/GetPlan; the published plan is left alone."""
+        response.plan = self._empty_path()
+        try:
+            start = conv.pose_stamped_to_xy_yaw(request.start, self._frame_id, 'start')
+            goal = conv.pose_stamped_to_xy_yaw(request.goal, self._frame_id, 'goal')
+            tolerance = float(request.tolerance)
+            if not (math.isfinite(tolerance) and tolerance >= 0):
+                raise InvalidInput(
+                    f'tolerance must be a non-negative number of metres, got {tolerance!r}')
+            if self._ensure_planner() is None:
+                self._diagnostics.update(WARN, 'get_plan: no map received yet',
+                                         last_outcome='no_map')
+                return response
+            result, used_goal = self._plan_to(start, goal, tolerance)
+        except PlanningError as err:
+            self._diagnostics.failed(err, 'get_plan')
+            return response
+        response.plan = conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2])
+        self._report_success('get_plan', result, goal, used_goal)
+        return response
+
+    # -- planning ---------------------------------------------------------------
+
+    def _replan(self, trigger):
+        """Plan from the robot to the current goal; publish the plan or an empty one."""
+        if self._ensure_planner() is None:
+            self._waiting = True
+            self._diagnostics.update(WARN, f'{trigger}: waiting for a map', last_outcome='no_map')
+            return
+        if self._start is None:
+            self._waiting = True
+            self._diagnostics.update(WARN, f'{trigger}: waiting for a start pose',
+                                     last_outcome='no_start_pose')
+            return
+        self._waiting = False
+        goal = self._goal
+        try:
+            result, used_goal = self._plan_to(
+                self._start, goal, self._params.current.goal_tolerance)
+        except Exception as err:  # noqa: BLE001 - re-raised below unless a planning outcome
+            self._plan = None
+            self._plan_pub.publish(self._empty_path())  # followers stop, whatever went wrong
+            if not isinstance(err, PlanningError):
+                raise  # a bug: the callback guard logs it and reports a fault
+            self._diagnostics.failed(err, trigger)
+            return
+        self._plan = result.path
+        self._plan_pub.publish(conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2]))
+        self._markers_pub.publish(self._markers(result))
+        self._report_success(trigger, result, goal, used_goal)
+
+    def _plan_to(self, start, goal, tolerance):
+        """Plan with goal tolerance; returns ``(PlanResult, goal used (2,))``."""
+        planner = self._ensure_planner()
+        goal_xy = np.array(goal[:2])
+        try:
+            planner.cells_of(start[:2], goal_xy)
+        except GoalOccupied:
+            if tolerance <= 0:
+                raise
+            goal_xy = self._free_goal_near(planner, start, goal_xy, tolerance)
+        result = planner.plan(start[:2], goal_xy,
+                              return_expanded=self._params.current.publish_expanded)
+        return result, goal_xy
+
+    def _free_goal_near(self, planner, start, goal_xy, tolerance):
+        grid = planner.grid
+        radius = planner.config.robot_radius
+        traversable = grid.traversable(radius)
+        if self._components is None or self._components[0] != radius:
+            self._components = (radius, ndimage.label(traversable)[0])
+        start_cell = tuple(int(v) for v in grid.cell_of(np.array(start[:2])))
+        found = nearest_free_goal(grid, traversable, goal_xy, tolerance,
+                                  self._components[1], start_cell)
+        if found is None:
+            raise GoalOccupied(
+                f'goal ({goal_xy[0]:.3f}, {goal_xy[1]:.3f}) is in an obstacle and no reachable '
+                f'free cell lies within the tolerance of {tolerance:g} m')
+        return found
+
+    def _ensure_planner(self):
+        """The planner on the current map with the current parameters, or None.
+
+        Applies parameter changes lazily, in the executor's thread: map
+        options rebuild the grid from the kept message, the rest reconfigure
+        the planner (keeping the map preparation).
+        """
+        if self._map_msg is None:
+            return None
+        params = self._params.current
+        if params.map_options() != self._map_options:
+            self._load_map(self._map_msg, params)
+        config = params.planner_config()
+        if self._planner.config != config:
+            self._planner.config = config
+        return self._planner
+
+    def _load_map(self, msg, params):
+        """Convert and cache a map (MapError leaves the previous map in place)."""
+        try:
+            grid = conv.occupancy_grid_to_grid_map(
+                msg, self._frame_id, params.unknown_is_occupied,
+                params.occupied_threshold, params.max_map_cells)
+        except PlanningError:
+            if msg is self._map_msg:  # the kept map no longer passes: drop it
+                self._map_msg = self._planner = None
+            raise
+        self._map_msg = msg
+        self._map_options = params.map_options()
+        self._planner = GlobalPlanner(grid, params.planner_config())
+        self._components = None
+
+    def _same_map(self, msg):
+        """Whether ``msg`` repeats the current map (e.g. a latched republish)."""
+        old = self._map_msg
+        if old is None:
+            return False
+        a, b = old.info, msg.info
+        if (old.header.frame_id, a.width, a.height, a.resolution, a.origin, len(old.data)) != \
+                (msg.header.frame_id, b.width, b.height, b.resolution, b.origin, len(msg.data)):
+            return False
+        return bool(np.array_equal(np.frombuffer(old.data, np.int8), np.frombuffer(msg.data, np.int8)))
+
+    def _plan_survives(self, old_planner, radius):
+        """Whether the rest of the current plan is still traversable on the new map.
+
+        A cell that was not traversable on the old map either (e.g. a start in
+        the inflation) does not count against the plan.
+        """
+        path = self._plan
+        if self._start is not None and len(path) > 1:
+            nearest = int(np.argmin(np.hypot(*(path - np.array(self._start[:2])).T)))
+            path = path[nearest:]
+        new_grid = self._planner.grid
+        cells = raster.path_cells(new_grid, path)
+        ok = _traversable_at(new_grid, cells, radius)
+        if ok.all():
+            return True
+        old_grid = None if old_planner is None else old_planner.grid
+        if old_grid is None or old_grid.shape != new_grid.shape \
+                or old_grid.resolution != new_grid.resolution or old_grid.origin != new_grid.origin:
+            return False
+        was_ok = _traversable_at(old_grid, cells, radius)
+        return not np.any(was_ok & ~ok)
+
+    # -- output -----------------------------------------------------------------
+
+    def _report_success(self, what, result, goal, used_goal):
+        m = result.metrics
+        moved = float(np.hypot(used_goal[0] - goal[0], used_goal[1] - goal[1]))
+        self._diagnostics.succeeded(
+            f'{what}: plan of {m.length_m:.2f} m in {m.time_s * 1e3:.1f} ms',
+            last_error='', plan_time_s=m.time_s, path_length_m=m.length_m,
+            expanded=m.expanded, key_points=m.key_points, min_clearance_m=m.min_clearance_m,
+            goal_moved_m=moved)
+
+    def _markers(self, result):
+        stamp = self._now()
+        markers = [conv.delete_all_marker(self._frame_id, stamp),
+                   conv.points_marker(result.key_nodes, self._frame_id, stamp, 'key_nodes',
+                                      Marker.SPHERE_LIST, KEY_NODE_MARKER_SIZE_M)]
+        cells = result.expanded_cells
+        if cells is not None and len(cells):
+            step = max(1, -(-len(cells) // MAX_EXPANDED_MARKER_POINTS))
+            grid = self._planner.grid
+            markers.append(conv.points_marker(
+                grid.world_of(cells[::step]), self._frame_id, stamp, 'expanded',
+                Marker.CUBE_LIST, grid.resolution, rgba=(0.9, 0.8, 0.2, 0.4)))
+        return MarkerArray(markers=markers)
+
+    def _empty_path(self):
+        msg = Path()
+        msg.header.frame_id = self._frame_id
+        msg.header.stamp = self._now()
+        return msg
+
+    def _empty_response(self, request, response):
+        response.plan = self._empty_path()
+        return response
+
+    def _now(self):
+        return self.get_clock().now().to_msg()
+
+
+def _traversable_at(grid, cells, radius):
+    """Bool per ``(row, col)``: inside the grid and traversable for ``radius``."""
+    inside = grid.contains(cells)
+    ok = np.zeros(len(cells), dtype=bool)
+    rc = cells[inside]
+    ok[inside] = grid.traversable(radius)[rc[:, 0], rc[:, 1]]
+    return ok
+
+
+def main(args=None):
+    """Run the global planner node until Ctrl-C or shutdown; returns the exit code."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GlobalPlannerNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except InvalidInput as err:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {err}')
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
