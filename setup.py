@@ -32,6 +32,7 @@ setup(
         # The ROS 2 Jazzy wheels, for machines without a sourced ROS install.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
         'plot': ['matplotlib', 'pillow'],
+        'bench': ['pyastar2d', 'tcod', 'pathfinding', 'python-motion-planning', 'networkx'],
         'test': ['pytest', 'pytest-timeout', 'hypothesis', 'matplotlib', 'pillow',
                  'colcon-common-extensions'],
     },
@@ -40,6 +41,8 @@ setup(
         'console_scripts': [
             'fusion-planner = fusion_planner.cli.main:main',
             'global_planner = fusion_planner.ros.global_planner:main',
+            'local_planner = fusion_planner.ros.local_planner:main',
+            'simulator = fusion_planner.ros.simulator:main',
         ],
     },
 )

@@ -13,6 +13,8 @@ import importlib
 #: Benchmark targets: name -> module with ``add_arguments`` and ``run``.
 TARGETS = {
     'paper': 'fusion_planner.bench.paper',
+    'movingai': 'fusion_planner.bench.movingai',
+    'peers': 'fusion_planner.bench.peers',
 }
 
 

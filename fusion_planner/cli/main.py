@@ -9,6 +9,7 @@ reached), 2 bad input. Bad input never prints a traceback.
 import argparse
 import importlib
 import logging
+import os
 import sys
 
 from fusion_planner.core.errors import PlanningError
@@ -17,6 +18,8 @@ from fusion_planner.core.errors import PlanningError
 COMMANDS = (
     'fusion_planner.cli.plan_command',
     'fusion_planner.cli.bench_command',
+    'fusion_planner.cli.demo_command',
+    'fusion_planner.cli.sim_command',
 )
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
@@ -48,6 +51,10 @@ def main(argv=None):
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:
+        # The reader left early (`| head`): silence the flush at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
 
 
 if __name__ == '__main__':

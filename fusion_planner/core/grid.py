@@ -9,13 +9,22 @@ Conventions (REP-103, the same as nav_msgs/OccupancyGrid):
 - ``resolution`` is the cell edge in metres; the origin ``(x, y, yaw)`` is the
   pose of the corner of cell ``(0, 0)`` in the map frame [m, m, rad].
 - Clearance is the Euclidean distance [m] from a cell centre to the centre of
-  the nearest occupied cell (``scipy.ndimage.distance_transform_edt`` with
-  ``sampling=resolution``); it is 0 on occupied cells and ``inf`` on a map
-  without obstacles. It is computed once per map, on first use.
+  the nearest occupied cell: ``sqrt(n) * resolution`` with ``n`` the exact
+  squared distance in cells; it is 0 on occupied cells and ``inf`` on a map
+  without obstacles.
 - A cell is *traversable* for an inflation radius ``r`` [m] when its
   clearance is strictly greater than ``r``: with ``r = 0`` every free cell is
   traversable; with the robot radius, every cell where a disc of that radius
   centred on the cell centre misses all occupied cell centres.
+
+What is computed, and when (each at most once per map, on first use): the
+whole clearance map (:attr:`GridMap.clearance`, a Euclidean distance
+transform, ``scipy.ndimage.distance_transform_edt``) only when a caller asks
+for it. Planning does not: an inflated mask (:meth:`GridMap.traversable`)
+needs the exact distance only up to the radius, which a bounded distance
+transform gives in a few vectorised passes; and the clearance of a path's
+cells (:meth:`GridMap.clearance_of_cells`) is computed exactly around those
+cells alone, from the per-column distances to the nearest obstacle.
 """
 
 import math
@@ -28,6 +37,21 @@ from fusion_planner.core.errors import InvalidInput, MapError
 #: Default cap on the number of cells of a map (4000 x 4000 fits). Larger
 #: maps are refused rather than risking the memory of the process.
 DEFAULT_MAX_CELLS = 16_000_000
+
+#: Column distance [cells] standing for "no occupied cell in this column";
+#: its square exceeds any squared distance inside an accepted map.
+_FAR_CELLS = 1 << 30
+#: Inflation radii up to this many cells use the bounded distance transform
+#: (one pass per cell of radius); larger ones the whole clearance map.
+MAX_BOUNDED_RADIUS_CELLS = 24
+#: A local clearance query switches to the whole clearance map when its next
+#: widening would read more than this many times the map's cell count.
+LOCAL_QUERY_MAX_WORK = 2
+#: Maps of at most this many cells compute the whole clearance map on the
+#: first clearance query (a few milliseconds), larger ones work locally.
+SMALL_MAP_CELLS = 1 << 16
+#: Largest number of values one local clearance gather reads at once.
+_GATHER_CHUNK = 1 << 22
 
 
 class GridMap:
@@ -89,6 +113,9 @@ class GridMap:
         self._cos = math.cos(self.origin[2])
         self._sin = math.sin(self.origin[2])
         self._clearance = None
+        self._column_distance = None
+        self._cell_clearance = None  # flat cache of local queries [m]
+        self._cell_known = None  # flat bool: which entries of the cache are set
         self._traversable = {}
 
     # -- shape and geometry -------------------------------------------------
@@ -187,11 +214,20 @@ class GridMap:
         Returns
         -------
         ndarray, float64, shape (H, W)
-            0 on occupied cells; ``inf`` everywhere when nothing is occupied.
+            ``sqrt(n) * resolution`` with ``n`` the squared distance in
+            cells; 0 on occupied cells; ``inf`` everywhere when nothing is
+            occupied. Computed on first use (a whole-map distance transform)
+            and kept; read-only.
         """
         if self._clearance is None:
             if self.occupied.any():
-                edt = ndimage.distance_transform_edt(~self.occupied, sampling=self.resolution)
+                unit = ndimage.distance_transform_edt(~self.occupied)
+                # Back to exact integer squared distances, so every clearance
+                # of this class is the same float expression of one integer.
+                np.square(unit, out=unit)
+                np.rint(unit, out=unit)
+                np.sqrt(unit, out=unit)
+                edt = np.multiply(unit, self.resolution, out=unit)
             else:
                 edt = np.full(self.shape, np.inf)
             edt.setflags(write=False)
@@ -210,6 +246,14 @@ class GridMap:
         -------
         ndarray, bool, shape (H, W)
             ``clearance > inflation_radius``; cached per radius.
+
+        Notes
+        -----
+        Exactly :attr:`clearance` ``> inflation_radius``, but without the
+        whole clearance map unless it was computed already or the radius is
+        more than :data:`MAX_BOUNDED_RADIUS_CELLS` cells: a cell is blocked
+        when an occupied cell lies within the radius, and only distances up
+        to the radius need to be exact (:func:`_bounded_squared_distance`).
         """
         if not _is_finite_number(inflation_radius) or inflation_radius < 0:
             raise InvalidInput(
@@ -219,11 +263,133 @@ class GridMap:
         if mask is None:
             if key == 0.0:
                 mask = ~self.occupied
-            else:
+            elif self._clearance is not None or not self.occupied.any():
                 mask = self.clearance > key
+            else:
+                threshold = _smallest_squared_distance_beyond(key, self.resolution)
+                reach = math.isqrt(threshold - 1) if threshold > 0 else 0
+                if reach > MAX_BOUNDED_RADIUS_CELLS:
+                    mask = self.clearance > key
+                else:
+                    squared = _bounded_squared_distance(self._column_distances(), reach)
+                    mask = squared >= threshold
             mask.setflags(write=False)
             self._traversable[key] = mask
         return mask
+
+    def clearance_of_cells(self, cells):
+        """Clearance [m] of given cells, computed around them only.
+
+        Parameters
+        ----------
+        cells : array_like of int, shape (N, 2)
+            ``(row, col)``, every one inside the grid.
+
+        Returns
+        -------
+        ndarray, float64, shape (N,)
+            The same values as ``clearance[rows, cols]``, bit for bit.
+
+        Raises
+        ------
+        InvalidInput
+            If a cell lies outside the grid or the array is not (N, 2).
+
+        Notes
+        -----
+        On a map of at most :data:`SMALL_MAP_CELLS` cells the whole
+        clearance map is computed (once) and read. Otherwise the distance of
+        cell ``(r, c)`` is ``min over c' of v(r, c')**2 +
+        (c - c')**2`` with ``v`` the distance to the nearest occupied cell
+        in the same column (one vectorised pass per map, kept): the columns
+        ``c'`` are widened around each cell, doubling, until no farther
+        column can give less. A query that would read more than
+        :data:`LOCAL_QUERY_MAX_WORK` times the map computes the whole map
+        instead. Each cell is computed once per map: results are kept.
+        """
+        cells = np.asarray(cells)
+        if cells.ndim != 2 or cells.shape[1] != 2:
+            raise InvalidInput(f'cells must be an (N, 2) array, got shape {cells.shape}')
+        if len(cells) == 0:
+            return np.zeros(0)
+        rows = cells[:, 0].astype(np.intp)
+        cols = cells[:, 1].astype(np.intp)
+        height, width = self.shape
+        if rows.min() < 0 or rows.max() >= height or cols.min() < 0 or cols.max() >= width:
+            raise InvalidInput('clearance_of_cells needs cells inside the grid')
+        if self._clearance is None and self.occupied.size <= SMALL_MAP_CELLS:
+            self.clearance  # computes and keeps the whole map
+        if self._clearance is not None:
+            return self._clearance[rows, cols]
+        if not self.occupied.any():
+            return np.full(len(cells), np.inf)
+        if self._cell_clearance is None:
+            # Pages of these are only touched where queries write.
+            self._cell_clearance = np.empty(self.occupied.size)
+            self._cell_known = np.zeros(self.occupied.size, dtype=bool)
+        flat = rows * width + cols
+        known = self._cell_known[flat]
+        if not known.all():
+            missing = np.unique(flat[~known])
+            squared = self._local_squared_distance(*np.divmod(missing, width))
+            if squared is None:  # cheaper as a whole map
+                return self.clearance[rows, cols]
+            self._cell_clearance[missing] = np.sqrt(squared.astype(float)) * self.resolution
+            self._cell_known[missing] = True
+        return self._cell_clearance[flat]
+
+    def _column_distances(self):
+        """Distance [cells] to the nearest occupied cell of the same column.
+
+        int32 (H, W); :data:`_FAR_CELLS` where the column has none. Kept.
+        """
+        if self._column_distance is None:
+            height = self.height
+            rows = np.arange(height, dtype=np.int32)[:, None]
+            # Index of the last occupied cell at or above each cell ...
+            above = np.where(self.occupied, rows, np.int32(-_FAR_CELLS))
+            np.maximum.accumulate(above, axis=0, out=above)
+            # ... and of the first at or below (on the flipped grid).
+            below = np.where(self.occupied[::-1], rows[::-1], np.int32(height + _FAR_CELLS))
+            np.minimum.accumulate(below, axis=0, out=below)
+            below = below[::-1]
+            np.subtract(rows, above, out=above)
+            np.subtract(below, rows, out=below)
+            np.minimum(above, below, out=above)
+            np.minimum(above, _FAR_CELLS, out=above)
+            above.setflags(write=False)
+            self._column_distance = above
+        return self._column_distance
+
+    def _local_squared_distance(self, rows, cols):
+        """Exact squared distances [cells^2] of unique cells, or None when a
+        whole-map transform is cheaper (see :meth:`clearance_of_cells`)."""
+        column = self._column_distances()
+        width = self.width
+        best = column[rows, cols].astype(np.int64) ** 2
+        pending = np.flatnonzero(best > 1)  # exact once best <= (reach + 1)**2
+        reach = 0
+        while pending.size and reach < width - 1:  # bounded: reach doubles
+            wider = min(max(2 * reach, 4), width - 1)
+            if pending.size * 2 * (wider - reach) > LOCAL_QUERY_MAX_WORK * self.occupied.size:
+                return None
+            steps = np.arange(reach + 1, wider + 1)
+            offsets = np.concatenate([steps, -steps])
+            extra = np.concatenate([steps * steps, steps * steps])
+            chunk = max(1, _GATHER_CHUNK // offsets.size)
+            for lo in range(0, pending.size, chunk):  # bounded: chunks of pending
+                part = pending[lo:lo + chunk]
+                at = cols[part][:, None] + offsets[None, :]
+                outside = (at < 0) | (at >= width)
+                np.clip(at, 0, width - 1, out=at)
+                values = column[rows[part][:, None], at].astype(np.int64)
+                values *= values
+                values += extra
+                values[outside] = np.iinfo(np.int64).max
+                best[part] = np.minimum(best[part], values.min(axis=1))
+            reach = wider
+            pending = pending[best[pending] > (reach + 1) ** 2]
+        return best
 
     def clearance_at(self, points):
         """Clearance [m] of the cells containing map-frame points.
@@ -245,6 +411,59 @@ class GridMap:
         rc = cells[inside]
         out[inside] = self.clearance[rc[:, 0], rc[:, 1]]
         return out
+
+
+def _smallest_squared_distance_beyond(radius, resolution):
+    """Smallest integer ``n`` with ``sqrt(n) * resolution > radius``.
+
+    The same float expression as :attr:`GridMap.clearance`, so that a
+    threshold on squared cell distances agrees with ``clearance > radius``
+    bit for bit.
+    """
+    n = int(math.floor((radius / resolution) ** 2))
+    n = max(n - 2, 0)
+    for _ in range(8):  # bounded: n starts within two of the answer
+        if math.sqrt(n) * resolution > radius:
+            break
+        n += 1
+    while n > 0 and math.sqrt(n - 1) * resolution > radius:  # bounded: n decreases
+        n -= 1
+    return n
+
+
+def _bounded_squared_distance(column_distance, reach):
+    """Squared distances [cells^2] to the nearest occupied cell, exact up to
+    ``reach**2`` and larger than ``reach**2`` wherever the exact value is.
+
+    Parameters
+    ----------
+    column_distance : ndarray of int32, shape (H, W)
+        Distance to the nearest occupied cell of the same column.
+    reach : int
+        Largest column offset considered [cells], >= 0.
+
+    Returns
+    -------
+    ndarray, int16 or int32, shape (H, W)
+
+    Notes
+    -----
+    ``min over |dc| <= reach of v(r, c + dc)**2 + dc**2``: an occupied cell
+    within distance ``reach`` lies at most ``reach`` columns away, so such
+    distances are exact; the others only grow. 2 * reach vectorised passes.
+    """
+    # Squares stay below 2 (reach + 1)**2: 16 bits suffice for any bounded reach.
+    dtype = np.int16 if 2 * (reach + 1) ** 2 < np.iinfo(np.int16).max else np.int32
+    capped = np.minimum(column_distance, reach + 1).astype(dtype)
+    capped *= capped
+    squared = capped.copy()
+    scratch = np.empty_like(capped)
+    for dc in range(1, reach + 1):  # bounded: reach passes
+        shifted = np.add(capped[:, :-dc], dc * dc, out=scratch[:, :-dc])
+        np.minimum(squared[:, dc:], shifted, out=squared[:, dc:])
+        shifted = np.add(capped[:, dc:], dc * dc, out=scratch[:, dc:])
+        np.minimum(squared[:, :-dc], shifted, out=squared[:, :-dc])
+    return squared
 
 
 def _is_finite_number(value):

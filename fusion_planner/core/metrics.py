@@ -176,8 +176,11 @@ def min_clearance(grid, path):
     >>> min_clearance(grid, [[0.5, 0.5], [0.5, 4.5]])
     4.0
     """
-    cells = raster.path_cells(grid, path)
-    inside = grid.contains(cells)
-    if not inside.all():
+    pts = raster.as_polyline(path)
+    g = grid.world_to_grid(pts)
+    ga, gb = (g, g) if len(g) == 1 else (g[:-1], g[1:])
+    # The cells of raster.path_cells, with repetitions: no sort needed for a minimum.
+    cells, _ = raster.supercover_grid(ga, gb, grid.shape)
+    if not grid.contains(cells).all():
         return 0.0
-    return float(grid.clearance[cells[:, 0], cells[:, 1]].min())
+    return float(grid.clearance_of_cells(cells).min())

@@ -41,10 +41,14 @@ class PlannerConfig:
         4, 8 or 16.
     heuristic : str or None
         ``'manhattan'``, ``'euclidean'`` or ``'octile'``; None picks the
-        tightest admissible one for the neighbourhood (ignored by Dijkstra).
+        tightest admissible one for the neighbourhood for A*, and the
+        Euclidean distance the paper uses (section 1.2) for the improved A*
+        (ignored by Dijkstra).
     alpha, beta, gamma : float
         Improved A* weights of eqs. (5)-(8): g weight, h weight, gain of the
-        distance-dependent heuristic weight w_n.
+        heuristic weight w_n (:func:`~fusion_planner.core.search.heuristic_weight`;
+        0.2 was tuned on the MovingAI maps and a 1024 x 1024 random map,
+        docs/BENCHMARKS.md).
     refine : bool
         Remove redundant nodes and smooth (section 1.3.3, Table 2).
     robot_radius : float
@@ -64,7 +68,7 @@ class PlannerConfig:
     heuristic: str = None
     alpha: float = 1.0
     beta: float = 1.0
-    gamma: float = 0.1
+    gamma: float = 0.2
     refine: bool = True
     robot_radius: float = 0.0
     safety_distance: float = 0.0
@@ -89,7 +93,7 @@ class PlannerConfig:
             return search.astar(self.neighbourhood, self.heuristic)
         return search.improved_astar(
             alpha=self.alpha, beta=self.beta, gamma=self.gamma,
-            neighbourhood=self.neighbourhood, heuristic=self.heuristic or 'octile')
+            neighbourhood=self.neighbourhood, heuristic=self.heuristic or 'euclidean')
 
 
 @dataclass
@@ -174,6 +178,18 @@ class GlobalPlanner:
     def reconfigure(self, **changes):
         """Replace configuration fields (validated); keeps the map preparation."""
         self.config = replace(self.config, **changes)
+
+    def prepare(self):
+        """Prepare the map for the current configuration now.
+
+        Builds what the first plan would otherwise build: the inflated
+        traversable mask, the padded search grid and its move tables for the
+        configured neighbourhood. Plans on an unchanged map and radius reuse
+        them. Optional; useful to keep the first plan's time to the search.
+        """
+        padded = self._search_grid()
+        padded.allowed_moves(self.config.neighbourhood)
+        padded.move_tables(self.config.neighbourhood)
 
     def _search_grid(self):
         radius = self.config.robot_radius

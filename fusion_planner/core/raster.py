@@ -153,6 +153,20 @@ def supercover_grid(ga, gb, shape):
     map. A segment wholly outside the clip box owns the cell(s) of its first
     end.
     """
+    points, owners = _supercover_points(ga, gb, shape)
+    p = np.concatenate(points)
+    owner = np.concatenate(owners)
+    return _cells_of_points(p), np.tile(owner, 4)
+
+
+def _supercover_points(ga, gb, shape):
+    """The cut points and ends of many segments, in groups.
+
+    Returns two lists of the same length: arrays of grid points ``(col,
+    row)`` shape (P, 2), and the owning segment of each point, shape (P,),
+    non-decreasing within each group (the first group is the clipped starts,
+    the second the clipped ends, then the crossings of each axis).
+    """
     ga = np.asarray(ga, dtype=float).reshape(-1, 2)
     gb = np.asarray(gb, dtype=float).reshape(-1, 2)
     m = len(ga)
@@ -164,14 +178,15 @@ def supercover_grid(ga, gb, shape):
     hi = np.maximum(ca, cb)
     first = np.floor(lo) + 1.0  # first integer line strictly above lo
     count = np.maximum(np.ceil(hi) - first, 0.0).astype(np.int64)  # lines strictly inside
+    every = np.arange(m)
     points = [ca, cb]
-    owners = [np.arange(m), np.arange(m)]
+    owners = [every, every]
     for axis in (0, 1):
         n = count[:, axis]
         total = int(n.sum())
         if total == 0:
             continue
-        seg = np.repeat(np.arange(m), n)
+        seg = np.repeat(every, n)
         local = np.arange(total) - np.repeat(np.cumsum(n) - n, n)
         k = first[seg, axis] + local
         t = (k - ca[seg, axis]) / d[seg, axis]
@@ -179,9 +194,55 @@ def supercover_grid(ga, gb, shape):
         p[:, axis] = k  # exactly on the line it crosses
         points.append(p)
         owners.append(seg)
-    p = np.concatenate(points)
-    owner = np.concatenate(owners)
-    return _cells_of_points(p), np.tile(owner, 4)
+    return points, owners
+
+
+def grid_segments_clearance(grid, ga, gb):
+    """:func:`segments_clearance` for segments in continuous grid coordinates.
+
+    Parameters
+    ----------
+    grid : GridMap
+    ga, gb : ndarray, float64, shape (M, 2)
+        Segment ends ``(col, row)`` in cell units
+        (:meth:`GridMap.world_to_grid`), finite; not validated.
+
+    Returns
+    -------
+    ndarray, float64, shape (M,)
+        Smallest :attr:`GridMap.clearance` over each segment's supercover;
+        0.0 where a touched cell lies outside the grid.
+
+    Notes
+    -----
+    For callers that test many segments of one polyline (refinement): the
+    conversion to grid coordinates is done once. The minimum is taken
+    without sorting: each cut point's four cells first, then each group of
+    points (owners already in order) per segment.
+    """
+    m = len(ga)
+    out = np.full(m, np.inf)
+    if m == 0:
+        return out
+    points, owners = _supercover_points(ga, gb, grid.shape)
+    cells = _cells_of_points(np.concatenate(points))
+    rows, cols = cells[:, 0], cells[:, 1]
+    height, width = grid.shape
+    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)
+    values = np.zeros(len(cells))
+    values[inside] = grid.clearance_of_cells(cells[inside])
+    per_point = values.reshape(4, -1).min(axis=0)
+    start = 0
+    for index, owner in enumerate(owners):  # bounded: at most four groups
+        group = per_point[start:start + len(owner)]
+        start += len(owner)
+        if index < 2:
+            np.minimum(out, group, out=out)  # starts or ends: one per segment, in order
+            continue
+        firsts = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
+        segments = owner[firsts]
+        out[segments] = np.minimum(out[segments], np.minimum.reduceat(group, firsts))
+    return out
 
 
 def segment_cells(grid, a, b):
@@ -290,16 +351,9 @@ def segments_clearance(grid, starts, ends):
     b = as_polyline(ends, 'segment ends', min_points=0)
     if a.shape != b.shape:
         raise InvalidInput(f'segment starts and ends differ in shape: {a.shape} vs {b.shape}')
-    out = np.full(len(a), np.inf)
     if len(a) == 0:
-        return out
-    cells, owner = supercover_grid(grid.world_to_grid(a), grid.world_to_grid(b), grid.shape)
-    inside = grid.contains(cells)
-    values = np.zeros(len(cells))
-    rc = cells[inside]
-    values[inside] = grid.clearance[rc[:, 0], rc[:, 1]]
-    np.minimum.at(out, owner, values)
-    return out
+        return np.full(0, np.inf)
+    return grid_segments_clearance(grid, grid.world_to_grid(a), grid.world_to_grid(b))
 
 
 def segment_clearance(grid, a, b):

@@ -110,17 +110,18 @@ def segment_is_safe(grid, a, b, robot_radius, safety_distance):
     return bool(_is_safe(raster.segment_clearance(grid, a, b), r, r + s))
 
 
-def _farthest_safe(grid, pts, i, r, needed):
+def _farthest_safe(grid, gpts, i, r, needed):
     """Index of a far node reachable from node ``i`` by a safe segment.
 
-    ``needed[k]`` is the clearance [m] the segment ``i -> i + 1 + k`` must
-    keep. Assumes the step ``i -> i + 1`` is safe. Probes ``i + 1, i + 2,
-    i + 4, ...`` and the last node in one batch, takes the farthest safe
-    probe, then bisects towards the next (unsafe) probe. The result ``j``
-    has a safe segment ``i -> j`` and is never before the end of the run of
-    consecutive nodes reachable from ``i``.
+    ``gpts`` are the nodes in grid coordinates. ``needed[k]`` is the
+    clearance [m] the segment ``i -> i + 1 + k`` must keep. Assumes the
+    step ``i -> i + 1`` is safe. Probes ``i + 1, i + 2, i + 4, ...`` and the
+    last node in one batch, takes the farthest safe probe, then bisects
+    towards the next (unsafe) probe, two bisection steps per batch. The
+    result ``j`` has a safe segment ``i -> j`` and is never before the end
+    of the run of consecutive nodes reachable from ``i``.
     """
-    n = len(pts)
+    n = len(gpts)
     probes = [i + 1]
     step = 2
     while i + step < n - 1:  # bounded: step doubles
@@ -129,8 +130,8 @@ def _farthest_safe(grid, pts, i, r, needed):
     if probes[-1] != n - 1:
         probes.append(n - 1)
     probes = np.array(probes)
-    clearance = raster.segments_clearance(
-        grid, np.repeat(pts[i:i + 1], len(probes), axis=0), pts[probes])
+    clearance = raster.grid_segments_clearance(
+        grid, np.repeat(gpts[i:i + 1], len(probes), axis=0), gpts[probes])
     ok = _is_safe(clearance, r, needed[probes - i - 1])
     ok[0] = True
     best = int(np.flatnonzero(ok)[-1])
@@ -138,18 +139,30 @@ def _farthest_safe(grid, pts, i, r, needed):
         return int(probes[best])
     lo, hi = int(probes[best]), int(probes[best + 1])
     while hi - lo > 1:  # bounded: bisection
+        # The midpoint and both possible next midpoints in one batch; the
+        # same decisions as plain bisection.
         mid = (lo + hi) // 2
-        if _is_safe(raster.segment_clearance(grid, pts[i], pts[mid]), r, needed[mid - i - 1]):
+        left, right = (lo + mid) // 2, (mid + hi) // 2
+        ends = np.array([mid, left, right])
+        clearance = raster.grid_segments_clearance(
+            grid, np.repeat(gpts[i:i + 1], 3, axis=0), gpts[ends])
+        safe = _is_safe(clearance, r, needed[ends - i - 1])
+        if safe[0]:
             lo = mid
+            if hi - lo > 1:
+                lo, hi = (right, hi) if safe[2] else (lo, right)
         else:
             hi = mid
+            if hi - lo > 1:
+                lo, hi = (left, hi) if safe[1] else (lo, left)
     return lo
 
 
 def _prune(grid, pts, r, s, tolerate_input_margin):
     """Greedy redundant-node removal over all of ``pts``; indices kept."""
     n = len(pts)
-    step_clearance = raster.segments_clearance(grid, pts[:-1], pts[1:])
+    gpts = grid.world_to_grid(pts)
+    step_clearance = raster.grid_segments_clearance(grid, gpts[:-1], gpts[1:])
     kept = [0]
     i = 0
     while i < n - 1:  # bounded: i grows every pass
@@ -159,7 +172,7 @@ def _prune(grid, pts, r, s, tolerate_input_margin):
         else:
             needed = np.full(n - 1 - i, r + s)
         if _is_safe(step_clearance[i], r, needed[0]):
-            i = _farthest_safe(grid, pts, i, r, needed)
+            i = _farthest_safe(grid, gpts, i, r, needed)
         else:
             i += 1  # the original step: never less safe than the input
         kept.append(i)
@@ -280,35 +293,65 @@ def _corner_arc(q0, u_in, turn, sign, tangent, spacing):
     return arc
 
 
-def _round_corner(grid, a, p, b, r, s, spacing):
-    """The verified rounded corner at ``p`` between legs a-p and p-b.
+def _round_corners(grid, pts, r, s, spacing):
+    """The verified rounded corner at every interior node of ``pts``.
 
-    Returns points from the arc start to the arc end (both included), or
-    ``p`` alone when the corner stays sharp.
+    Returns, per interior node ``pts[i]`` (i = 1 .. n - 2), points from the
+    arc start to the arc end (both included), or ``pts[i]`` alone when the
+    corner stays sharp. Each corner is tried with its largest tangent length,
+    then halved, as in the Notes of :func:`smooth_path`; all corners still
+    being tried are checked together, one batch of segments per attempt.
     """
-    len_in = math.hypot(*(p - a))
-    len_out = math.hypot(*(b - p))
-    u_in = (p - a) / len_in
-    u_out = (b - p) / len_out
-    cross = u_in[0] * u_out[1] - u_in[1] * u_out[0]
-    turn = math.atan2(abs(cross), float(np.dot(u_in, u_out)))
-    if turn < MIN_TURN_RAD or turn > math.pi - MIN_TURN_RAD:
-        return p[None, :]
-    sign = 1.0 if cross > 0 else -1.0
-    tangent = 0.5 * min(len_in, len_out)
+    count = len(pts) - 2
+    result = [pts[i + 1][None, :] for i in range(count)]
+    shape = []  # (corner, p, u_in, u_out, turn, sign) of the corners that turn
+    tangent = []
+    for c in range(count):  # bounded: one pass over the corners
+        a, p, b = pts[c], pts[c + 1], pts[c + 2]
+        len_in = math.hypot(*(p - a))
+        len_out = math.hypot(*(b - p))
+        u_in = (p - a) / len_in
+        u_out = (b - p) / len_out
+        cross = u_in[0] * u_out[1] - u_in[1] * u_out[0]
+        turn = math.atan2(abs(cross), float(np.dot(u_in, u_out)))
+        if turn < MIN_TURN_RAD or turn > math.pi - MIN_TURN_RAD:
+            continue
+        shape.append((c, p, u_in, u_out, turn, 1.0 if cross > 0 else -1.0))
+        tangent.append(0.5 * min(len_in, len_out))
+    pending = list(range(len(shape)))
     for _ in range(MAX_SHRINK_STEPS + 1):  # bounded: halving
-        q0 = p - tangent * u_in
-        q2 = p + tangent * u_out
-        arc = _corner_arc(q0, u_in, turn, sign, tangent, spacing)
-        arc[-1] = q2
-        legs = raster.segments_clearance(grid, np.stack([q0, p]), np.stack([p, q2]))
-        need = min(float(legs.min()), r + s)
-        got = metrics.min_clearance(grid, arc)
-        if got > r and got >= need:
-            return arc
-        tangent *= 0.5
-    _LOG.debug('corner at (%.3f, %.3f) left sharp: no arc keeps the clearance', p[0], p[1])
-    return p[None, :]
+        if not pending:
+            break
+        arcs, leg_starts, leg_ends = [], [], []
+        for k in pending:
+            c, p, u_in, u_out, turn, sign = shape[k]
+            q0 = p - tangent[k] * u_in
+            q2 = p + tangent[k] * u_out
+            arc = _corner_arc(q0, u_in, turn, sign, tangent[k], spacing)
+            arc[-1] = q2
+            arcs.append(arc)
+            leg_starts += [q0, p]
+            leg_ends += [p, q2]
+        legs = raster.segments_clearance(grid, np.array(leg_starts), np.array(leg_ends))
+        # Smallest clearance of each arc: of all its chords (metrics.min_clearance).
+        sizes = np.array([len(arc) - 1 for arc in arcs])
+        starts = np.concatenate([arc[:-1] for arc in arcs])
+        ends = np.concatenate([arc[1:] for arc in arcs])
+        chords = raster.segments_clearance(grid, starts, ends)
+        got = np.minimum.reduceat(chords, np.concatenate([[0], np.cumsum(sizes)[:-1]]))
+        still = []
+        for index, k in enumerate(pending):
+            need = min(float(min(legs[2 * index], legs[2 * index + 1])), r + s)
+            if got[index] > r and got[index] >= need:
+                result[shape[k][0]] = arcs[index]
+            else:
+                tangent[k] *= 0.5
+                still.append(k)
+        pending = still
+    for k in pending:
+        p = shape[k][1]
+        _LOG.debug('corner at (%.3f, %.3f) left sharp: no arc keeps the clearance', p[0], p[1])
+    return result
 
 
 def smooth_path(grid, key_nodes, robot_radius, safety_distance, spacing):
@@ -382,8 +425,7 @@ def smooth_path(grid, key_nodes, robot_radius, safety_distance, spacing):
     pts[-1] = nodes[-1]
     pieces = []
     start = pts[0]
-    for i in range(1, len(pts) - 1):  # bounded: one pass over the corners
-        arc = _round_corner(grid, pts[i - 1], pts[i], pts[i + 1], r, s, spacing)
+    for arc in _round_corners(grid, pts, r, s, spacing):  # bounded: one per corner
         pieces.append(_sample_line(start, arc[0], spacing))
         pieces.append(arc[:-1])
         start = arc[-1]

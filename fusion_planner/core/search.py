@@ -3,13 +3,29 @@
 Dijkstra, A* with 4-, 8- and 16-neighbourhoods, and the paper's improved A*
 share the loop in :func:`grid_search`; they differ only in their
 :class:`SearchPolicy`: the neighbourhood table, the heuristic (eqs. 2-4),
-the weights of eq. (5), the distance-dependent heuristic weight of eqs.
-(6)-(8) and the variable neighbourhood of section 1.3.1.
+the weights of eq. (5), the heuristic weight of eqs. (6)-(8) and the
+variable neighbourhood of section 1.3.1.
 
 Costs are in cells (an orthogonal step costs 1, a diagonal sqrt(2)).
 Cells are ``(row, col)``. The engine works on a flat, padded copy of the
 traversable mask so that a neighbour lookup is one index operation and no
 bounds check.
+
+How the loop is kept fast in pure Python (see docs/BENCHMARKS.md):
+
+- the moves that may leave a cell (target free, no corner cut) are a
+  per-cell bitmask computed once per map with numpy
+  (:meth:`PaddedGrid.allowed_moves`), and each bitmask value has its list of
+  moves precomputed (:meth:`PaddedGrid.move_tables`, per goal sector for the
+  variable neighbourhood), so the loop visits only legal moves and never
+  tests a wall or a corner;
+- one byte per cell holds the whole per-search state (never reached, open
+  with the move that reached it, closed), so "closed?", "seen?" and the
+  parent are one index operation and the path is rebuilt from move codes;
+- the costs g live in a flat float array reused across searches on the
+  same grid (no per-search allocation of map size);
+- the heuristic is computed inline from the row and column offsets, and
+  the heuristic weight of eqs. (6)-(8) is one factor per search.
 
 References
 ----------
@@ -20,6 +36,7 @@ Determination of Minimum Cost Paths", IEEE TSSC 4(2), 1968.
 import heapq
 import math
 import time
+from array import array
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,8 +50,24 @@ HEURISTICS = ('zero', 'manhattan', 'euclidean', 'octile')
 #: Border of blocked cells around the padded grid; the 16-neighbourhood
 #: reaches two cells away.
 _PAD = 2
-#: Limits and cancellation are checked once per this many expansions.
+#: Limits and cancellation are checked at the first expansion and then once
+#: per this many expansions (the expansion budget itself is exact).
 _CHECK_EVERY = 1024
+
+#: Per-search cell state, one byte per padded cell: 0 never reached;
+#: 1..16 reached, the value being 1 + the index of the move (in
+#: :func:`neighbourhood.moves` order) that reached it last; the start is
+#: :data:`_START_CODE`; :data:`_CLOSED` is or-ed in once a cell is expanded.
+_START_CODE = 127
+_CLOSED = 128
+_CODE_BITS = 127
+
+#: sqrt(2) - 2, the octile correction of eq. (4).
+_ROOT2_MINUS_2 = math.sqrt(2.0) - 2.0
+#: Heuristic kinds as small integers for the inline computation.
+_ZERO, _MANHATTAN, _EUCLIDEAN, _OCTILE = range(4)
+_HEURISTIC_CODES = {'zero': _ZERO, 'manhattan': _MANHATTAN, 'euclidean': _EUCLIDEAN,
+                    'octile': _OCTILE}
 
 
 @dataclass(frozen=True)
@@ -51,8 +84,8 @@ class SearchPolicy:
     alpha, beta : float
         Weights of g and h in eq. (5) / eq. (8); > 0.
     gamma : float
-        Gain of the distance-dependent heuristic weight w_n of eqs. (6)-(8),
-        >= 0; 0 gives w_n = 1. See :func:`heuristic_weight`.
+        Gain of the heuristic weight w_n of eqs. (6)-(8), >= 0; 0 gives
+        w_n = 1. See :func:`heuristic_weight`.
     variable_neighbourhood : bool
         Search only the moves heading towards the goal (section 1.3.1),
         widening when they make no progress.
@@ -94,19 +127,23 @@ def astar(neighbourhood=8, heuristic=None):
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic)
 
 
-def improved_astar(alpha=1.0, beta=1.0, gamma=0.1, neighbourhood=8, heuristic='octile'):
-    """Policy of the paper's improved A* (sections 1.3.1 and 1.3.2)."""
+def improved_astar(alpha=1.0, beta=1.0, gamma=0.2, neighbourhood=8, heuristic='euclidean'):
+    """Policy of the paper's improved A* (sections 1.3.1 and 1.3.2).
+
+    The defaults are the tuned ones of :class:`~fusion_planner.core.planner.PlannerConfig`:
+    the Euclidean heuristic the paper uses (section 1.2) and ``gamma = 0.2``.
+    """
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic, alpha=alpha,
                         beta=beta, gamma=gamma, variable_neighbourhood=True)
 
 
 def heuristic_weight(h, start_distance, gamma):
-    """Distance-dependent heuristic weight w_n, our reading of eqs. (6)-(8).
+    """Heuristic weight w_n of eqs. (6)-(8), as this project reads them.
 
     Parameters
     ----------
     h : float
-        Heuristic distance from the node to the goal [cells].
+        Heuristic distance from the node to the goal [cells], >= 0.
     start_distance : float
         Heuristic distance from the start to the goal, S of eq. (6) [cells].
     gamma : float
@@ -115,22 +152,39 @@ def heuristic_weight(h, start_distance, gamma):
     Returns
     -------
     float
-        ``w_n = 1 + gamma * (exp(r) - 1)`` with ``r = h / S``: 1 at the goal
-        (plain A* close to the goal, where precision matters) rising to
-        ``1 + gamma * (e - 1)`` at the start distance (greedy far away, where
-        speed matters). Using r instead of the raw distance of the printed
-        formula keeps the exponential bounded on any map size.
+        ``w_n = 1 + gamma`` for every node of a search with
+        ``start_distance > 0``; 1 when the start is the goal.
+
+    Notes
+    -----
+    Printed, eq. (7) is ``w_n = gamma * exp(S) * (1 + h_g / S)``, with h_g
+    undefined and exp(S) of a distance in cells overflowing on any real map.
+    We read h_g as the heuristic at the goal, 0, which makes the weight one
+    factor per search; the unbounded ``exp(S)`` is replaced by the gain, so
+    ``w_n = 1 + gamma`` and ``gamma = 0`` gives back eq. (5).
+
+    An earlier reading, ``w_n = 1 + gamma (exp(h / S) - 1)`` (1 at the goal,
+    larger far away), was measured and dropped: a weight that falls towards
+    the goal makes ``f`` rise along the final approach, so the search floods
+    the goal region (128,060 expansions from corner to corner of a
+    1024 x 1024 map with 20 % obstacles, against 3,878 for a constant weight
+    of 1.2 at a shorter path); docs/BENCHMARKS.md has the table. With a
+    constant weight the search is weighted A*: its path costs at most
+    ``1 + gamma`` times the optimum (``alpha = beta = 1``).
+
+    ``h`` and ``start_distance`` are kept so that a distance-dependent
+    reading can be plugged in without changing callers.
 
     Examples
     --------
-    >>> heuristic_weight(0.0, 10.0, 1.0)
+    >>> heuristic_weight(3.0, 10.0, 0.2)
+    1.2
+    >>> heuristic_weight(0.0, 0.0, 0.2)
     1.0
-    >>> round(heuristic_weight(10.0, 10.0, 1.0), 4)
-    2.7183
     """
     if start_distance <= 0:
         return 1.0
-    return 1.0 + gamma * (math.exp(h / start_distance) - 1.0)
+    return 1.0 + gamma
 
 
 @dataclass
@@ -158,23 +212,55 @@ class SearchResult:
     expanded_cells: np.ndarray = None
 
 
+class _MovesByMask(dict):
+    """Lazily filled map: bitmask of legal moves -> tuple of move entries.
+
+    An entry is ``(flat offset, cost, d_row, d_col, code)``; only the moves
+    whose index is in ``indices`` and whose bit is set in the mask appear,
+    in table order.
+    """
+
+    def __init__(self, entries, indices):
+        super().__init__()
+        self._entries = entries
+        self._indices = tuple(indices)
+
+    def __missing__(self, mask):
+        moves = tuple(self._entries[i] for i in self._indices if mask >> i & 1)
+        self[mask] = moves
+        return moves
+
+
 class PaddedGrid:
     """A traversable mask flattened with a blocked border, for the engine.
 
-    Build once per map and inflation radius and reuse across searches.
+    Build once per map and inflation radius and reuse across searches: the
+    legal-move bitmasks and move tables of each neighbourhood are computed
+    on first use and kept, and so is the cost array of the search
+    (8 bytes per padded cell).
 
     Parameters
     ----------
     traversable : ndarray of bool, shape (H, W)
+
+    Raises
+    ------
+    InvalidInput
+        If ``traversable`` is not a 2-D array.
     """
 
     def __init__(self, traversable):
         mask = np.asarray(traversable, dtype=bool)
+        if mask.ndim != 2:
+            raise InvalidInput(f'a traversable mask must be a 2-D array, got shape {mask.shape}')
         self.shape = mask.shape
         self.width = mask.shape[1] + 2 * _PAD
         padded = np.zeros((mask.shape[0] + 2 * _PAD, self.width), dtype=np.uint8)
         padded[_PAD:-_PAD, _PAD:-_PAD] = mask
-        self.passable = bytearray(padded.tobytes())
+        self.passable = bytearray(padded.data)
+        self._allowed = {}
+        self._tables = {}
+        self._cost_pool = []
 
     def index(self, cell):
         """Flat index of a ``(row, col)`` cell."""
@@ -186,33 +272,109 @@ class PaddedGrid:
         rows, cols = np.divmod(flat, self.width)
         return np.stack([rows - _PAD, cols - _PAD], axis=1)
 
+    def allowed_moves(self, neighbourhood):
+        """Bitmask of the legal moves out of every padded cell.
 
-def _heuristic_term(policy, goal_row, goal_col, width, start_index):
-    """The weighted heuristic term ``beta * h * w_n`` of eq. (8), as f(index)."""
-    kind = policy.heuristic
-    if kind == 'zero':
-        return lambda index: 0.0
-    root2_minus_2 = math.sqrt(2.0) - 2.0
+        Parameters
+        ----------
+        neighbourhood : int
+            4, 8 or 16.
 
-    def h(index):
-        row, col = divmod(index, width)
-        dx = abs(col - goal_col)
-        dy = abs(row - goal_row)
-        if kind == 'octile':  # eq. (4)
-            return dx + dy + root2_minus_2 * (dx if dx < dy else dy)
-        if kind == 'euclidean':  # eq. (3)
-            return math.sqrt(dx * dx + dy * dy)
-        return dx + dy  # eq. (2)
+        Returns
+        -------
+        bytes or array.array of 'H', length ``len(self.passable)``
+            Bit ``i`` of entry ``j`` is set when move ``i`` of
+            :func:`neighbourhood.moves` may be taken from cell ``j``: its
+            target and every cell it crosses are traversable. The source
+            itself is not checked (a start inside the inflation can be
+            left). Entries of the blocked border are meaningless. Cached.
+        """
+        allowed = self._allowed.get(neighbourhood)
+        if allowed is None:
+            table = nbh.moves(neighbourhood)
+            free = np.frombuffer(self.passable, dtype=np.uint8).astype(bool)
+            n = free.size
+            reach = _PAD * self.width + _PAD  # largest |flat offset| of any move
+            dtype = np.uint8 if len(table) <= 8 else np.uint16
+            bits = np.zeros(n, dtype=dtype)
+            inner = bits[reach:n - reach]
+            for i, (dr, dc, _, crossed) in enumerate(table):
+                ok = _shifted(free, dr * self.width + dc, reach).copy()
+                for cr, cc in crossed:
+                    ok &= _shifted(free, cr * self.width + cc, reach)
+                inner |= ok.astype(dtype) << dtype(i)
+            allowed = bits.tobytes() if dtype is np.uint8 else array('H', bits.tobytes())
+            self._allowed[neighbourhood] = allowed
+        return allowed
 
-    beta, gamma = policy.beta, policy.gamma
-    if gamma == 0.0:
-        return lambda index: beta * h(index)
-    start_distance = h(start_index)  # S of eq. (6)
+    def move_tables(self, neighbourhood):
+        """Moves by legal-move bitmask: all, and per goal sector forward / rest.
 
-    def weighted(index):
-        hn = h(index)
-        return beta * hn * heuristic_weight(hn, start_distance, gamma)
-    return weighted
+        Parameters
+        ----------
+        neighbourhood : int
+            4, 8 or 16.
+
+        Returns
+        -------
+        full : mapping of int to tuple
+            ``full[mask]``: the entries ``(flat offset, cost, d_row, d_col,
+            code)`` of the moves set in ``mask``.
+        forward, rest : list of mapping of int to tuple
+            For each of the 8 goal sectors (:func:`neighbourhood.sector_of`),
+            the same restricted to the moves heading towards the goal and to
+            the others (:func:`neighbourhood.sector_split`). Filled on first
+            use of a mask, then cached.
+        """
+        tables = self._tables.get(neighbourhood)
+        if tables is None:
+            table = nbh.moves(neighbourhood)
+            entries = [(dr * self.width + dc, cost, dr, dc, i + 1)
+                       for i, (dr, dc, cost, _) in enumerate(table)]
+            forward_idx, rest_idx = nbh.sector_split(table)
+            tables = (_MovesByMask(entries, range(len(table))),
+                      [_MovesByMask(entries, idx) for idx in forward_idx],
+                      [_MovesByMask(entries, idx) for idx in rest_idx])
+            self._tables[neighbourhood] = tables
+        return tables
+
+    def _take_costs(self):
+        """A cost array of padded-grid size (contents undefined)."""
+        try:
+            return self._cost_pool.pop()
+        except IndexError:
+            return array('d', bytes(8 * len(self.passable)))
+
+    def _give_costs(self, costs):
+        self._cost_pool.append(costs)
+
+
+def _shifted(values, offset, reach):
+    """``values[j + offset]`` for the inner range ``reach <= j < n - reach``."""
+    n = values.size
+    return values[reach + offset:n - reach + offset]
+
+
+def _sector(d_row, d_col):
+    """:func:`neighbourhood.sector_of` for integer offsets, without trigonometry.
+
+    The direction is near an axis when it lies within 22.5 degrees of it,
+    i.e. ``|minor| < tan(22.5 deg) |major|``, tested exactly in integers as
+    ``(|minor| + |major|)**2 < 2 major**2`` (tan 22.5 deg = sqrt 2 - 1).
+    """
+    ar = -d_row if d_row < 0 else d_row
+    ac = -d_col if d_col < 0 else d_col
+    total = ar + ac
+    square = total * total
+    if square < 2 * ac * ac:  # near the column axis
+        return 0 if d_col >= 0 else 4
+    if square < 2 * ar * ar:  # near the row axis
+        return 2 if d_row > 0 else 6
+    if d_row > 0:
+        return 1 if d_col > 0 else 3
+    if d_row == 0:  # only the start == goal offset (0, 0) gets here
+        return 0
+    return 7 if d_col > 0 else 5
 
 
 def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=None,
@@ -228,12 +390,13 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
         ``(row, col)`` inside the grid; the goal must be traversable.
     policy : SearchPolicy
     max_expansions : int, optional
-        Stop with :class:`PlannerTimedOut` after this many expansions.
+        Stop with :class:`PlannerTimedOut` when this many nodes have been
+        expanded without reaching the goal.
     time_limit_s : float, optional
         Stop with :class:`PlannerTimedOut` after this much wall time [s].
     cancel : callable, optional
-        Polled every 1024 expansions; returning True stops the search with
-        :class:`PlannerCancelled`.
+        Polled at the first expansion and then every 1024 expansions;
+        returning True stops the search with :class:`PlannerCancelled`.
     return_expanded : bool
         Fill :attr:`SearchResult.expanded_cells`.
 
@@ -251,12 +414,13 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     Notes
     -----
     The evaluation is ``f = alpha * g + beta * h * w_n`` (eqs. 5 and 8), with
-    ``w_n = 1`` unless ``policy.gamma > 0``. Ties in f go to the node with the
-    smaller heuristic term (nearer the goal), which keeps A* from expanding
-    whole plateaus of equal f on open maps. A node's g is never revised
-    after it is closed, so with weights > 1 the path is within the largest
-    weight of the optimum (weighted A*); with ``alpha = beta = 1`` and
-    ``gamma = 0`` and an admissible heuristic it is optimal.
+    ``w_n`` from :func:`heuristic_weight` (1 unless ``policy.gamma > 0``).
+    Ties in f go to the node with the smaller heuristic term (nearer the
+    goal), which keeps A* from expanding whole plateaus of equal f on open
+    maps. A node's g is never revised after it is closed, so with weights
+    > 1 the path is within the largest weight of the optimum (weighted A*);
+    with ``alpha = beta = 1`` and ``gamma = 0`` and an admissible heuristic
+    it is optimal.
 
     With the variable neighbourhood (section 1.3.1) a node is first expanded
     with the moves heading towards the goal only. When none of them opens or
@@ -277,108 +441,192 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     ([[0, 0], [0, 1], [0, 2], [1, 2], [2, 2]], 4.0)
     """
     width = grid.width
-    passable = grid.passable
-    table = nbh.moves(policy.neighbourhood)
-    # (flat offset, cost, crossed offset a, crossed offset b); an orthogonal
-    # move "crosses" its own source twice, so the check is branch-free.
-    flat_moves = []
-    for dr, dc, cost, crossed in table:
-        a, b = (crossed + ((0, 0), (0, 0)))[:2]
-        flat_moves.append((dr * width + dc, cost, a[0] * width + a[1], b[0] * width + b[1]))
-    if policy.variable_neighbourhood:
-        forward, rest = nbh.sector_split(table)
-        forward_moves = [[flat_moves[i] for i in idx] for idx in forward]
-        rest_moves = [[flat_moves[i] for i in idx] for idx in rest]
+    neighbourhood = policy.neighbourhood
+    allowed = grid.allowed_moves(neighbourhood)
+    full, forward, rest = grid.move_tables(neighbourhood)
+    offsets = [entry[0] for entry in full[(1 << len(nbh.moves(neighbourhood))) - 1]]
+    variable = policy.variable_neighbourhood
+    alpha = float(policy.alpha)
+    kind = _HEURISTIC_CODES[policy.heuristic]
 
     s = grid.index(start)
     t = grid.index(goal)
     goal_row, goal_col = divmod(t, width)
-    term = _heuristic_term(policy, goal_row, goal_col, width, s)
-    alpha = policy.alpha
-    variable = policy.variable_neighbourhood
-    deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
-
-    g = {s: 0.0}
-    parent = {s: -1}
-    closed = set()
-    h0 = term(s)
-    heap = [(h0, h0, s, False)]
+    start_row, start_col = divmod(s, width)
+    if kind == _ZERO:
+        weight = 0.0
+    else:
+        start_distance = _heuristic(kind, start_row - goal_row, start_col - goal_col)
+        weight = policy.beta * heuristic_weight(start_distance, start_distance, policy.gamma)
+    sqrt = math.sqrt
     push, pop = heapq.heappush, heapq.heappop
-    expanded = 0
-    found = False
-    while heap:
-        f, _, j, is_deferred = pop(heap)
-        if is_deferred:
-            # Second pass of a reduced expansion: its remaining moves.
-            row, col = divmod(j, width)
-            candidates = rest_moves[nbh.sector_of(goal_row - row, goal_col - col)]
-        else:
-            if j in closed:
-                continue
-            if j == t:
-                found = True
-                break
-            closed.add(j)
-            expanded += 1
-            if expanded % _CHECK_EVERY == 0:
-                if max_expansions is not None and expanded >= max_expansions:
-                    raise PlannerTimedOut(
-                        f'search stopped after {expanded} expansions without reaching the goal')
-                if deadline is not None and time.monotonic() > deadline:
-                    raise PlannerTimedOut(
-                        f'search stopped after {time_limit_s:g} s without reaching the goal')
-                if cancel is not None and cancel():
-                    raise PlannerCancelled('search cancelled by the caller')
-            if variable:
-                row, col = divmod(j, width)
-                sector = nbh.sector_of(goal_row - row, goal_col - col)
-                candidates = forward_moves[sector]
+    deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
+    budget = math.inf if max_expansions is None else max_expansions
+
+    closed_bit = _CLOSED
+    euclidean = kind == _EUCLIDEAN
+    octile = kind == _OCTILE
+    zero = kind == _ZERO
+    root2_minus_2 = _ROOT2_MINUS_2
+    state = bytearray(len(grid.passable))
+    g = grid._take_costs()
+    try:
+        state[s] = _START_CODE
+        g[s] = 0.0
+        h0 = weight * _heuristic(kind, start_row - goal_row, start_col - goal_col)
+        heap = [(h0, h0, s)]
+        generated = 1
+        expanded = 0
+        next_check = 1  # poll the limits at the first expansion
+        found = False
+        while heap:
+            j = pop(heap)[2]
+            if j >= 0:
+                code = state[j]
+                if code & closed_bit:
+                    continue  # a stale entry of a node already expanded
+                if j == t:
+                    found = True
+                    break
+                state[j] = code | closed_bit
+                expanded += 1
+                if expanded >= next_check:
+                    _check_limits(expanded, budget, deadline, time_limit_s, cancel)
+                    next_check = min(expanded + _CHECK_EVERY, budget)
+                widened = not variable
             else:
-                candidates = flat_moves
-        gj = g[j]
-        while True:
-            opened = False
-            for offset, cost, a, b in candidates:
-                k = j + offset
-                if not passable[k] or k in closed or not (passable[j + a] and passable[j + b]):
-                    continue
-                ng = gj + cost
-                if ng < g.get(k, math.inf):
-                    g[k] = ng
-                    parent[k] = j
-                    hk = term(k)
-                    push(heap, (alpha * ng + hk, hk, k, False))
-                    opened = True
-            if not variable or is_deferred or candidates is rest_moves[sector]:
-                break
-            if opened:
-                # Re-queue the node at the best f its remaining moves would
-                # give, so they are tried exactly when A* would need them.
-                best_f, best_h = math.inf, 0.0
-                for offset, cost, a, b in rest_moves[sector]:
+                # Second pass of a reduced expansion: its remaining moves.
+                j = ~j
+                widened = True
+            row, col = divmod(j, width)
+            d_row = row - goal_row
+            d_col = col - goal_col
+            mask = allowed[j]
+            if variable:
+                # _sector(-d_row, -d_col), inline: the goal direction's sector.
+                a_row = -d_row if d_row < 0 else d_row
+                a_col = -d_col if d_col < 0 else d_col
+                square = (a_row + a_col) * (a_row + a_col)
+                if square < 2 * a_col * a_col:
+                    sector = 4 if d_col > 0 else 0
+                elif square < 2 * a_row * a_row:
+                    sector = 6 if d_row > 0 else 2
+                elif d_row < 0:
+                    sector = 1 if d_col < 0 else 3
+                elif d_row == 0:
+                    sector = 0
+                else:
+                    sector = 7 if d_col < 0 else 5
+                moves = rest[sector][mask] if widened else forward[sector][mask]
+            else:
+                moves = full[mask]
+            gj = g[j]
+            probe = False
+            while True:  # at most three passes: forward, probe, rest
+                opened = False
+                best_f = math.inf
+                best_h = 0.0
+                for offset, cost, dr, dc, move_code in moves:
                     k = j + offset
-                    if not passable[k] or k in closed or not (passable[j + a] and passable[j + b]):
+                    state_k = state[k]
+                    if state_k & closed_bit:
                         continue
                     ng = gj + cost
-                    if ng < g.get(k, math.inf):
-                        hk = term(k)
-                        if alpha * ng + hk < best_f:
-                            best_f, best_h = alpha * ng + hk, hk
-                if best_f < math.inf:
-                    push(heap, (best_f, best_h, j, True))
-                break
-            candidates = rest_moves[sector]  # widen at once: no progress ahead
-    if not found:
-        raise NoValidPathCouldBeFound(
-            f'no path from cell {tuple(start)} to cell {tuple(goal)} '
-            f'({expanded} cells expanded)')
+                    if state_k and ng >= g[k]:
+                        continue
+                    # The heuristic term beta * h * w_n, inline (eqs. 2-4, 8).
+                    if euclidean:
+                        y = d_row + dr
+                        x = d_col + dc
+                        hk = weight * sqrt(x * x + y * y)
+                    elif octile:
+                        y = d_row + dr
+                        x = d_col + dc
+                        if y < 0:
+                            y = -y
+                        if x < 0:
+                            x = -x
+                        hk = weight * (x + y + root2_minus_2 * (x if x < y else y))
+                    elif zero:
+                        hk = 0.0
+                    else:
+                        hk = weight * (abs(d_row + dr) + abs(d_col + dc))
+                    f = alpha * ng + hk
+                    if probe:
+                        if f < best_f:
+                            best_f = f
+                            best_h = hk
+                        continue
+                    if not state_k:
+                        generated += 1
+                    g[k] = ng
+                    state[k] = move_code
+                    push(heap, (f, hk, k))
+                    opened = True
+                if probe:
+                    # Re-queue the node at the best f its remaining moves
+                    # would give, so they are tried exactly when A* would
+                    # need them; when that entry would come up next anyway,
+                    # widen now instead.
+                    if best_f == math.inf:
+                        break
+                    entry = (best_f, best_h, ~j)
+                    if heap and heap[0] < entry:
+                        push(heap, entry)
+                        break
+                    moves = rest[sector][mask]
+                    probe = False
+                    continue
+                if widened:
+                    break
+                widened = True
+                moves = rest[sector][mask]
+                # No progress ahead: widen at once; else only measure the rest.
+                probe = opened
+        if not found:
+            raise NoValidPathCouldBeFound(
+                f'no path from cell {tuple(start)} to cell {tuple(goal)} '
+                f'({expanded} cells expanded)')
+        cost = g[t]
+    finally:
+        grid._give_costs(g)
 
-    chain = []
+    chain = [t]
     j = t
-    while j != -1:
+    for _ in range(len(state)):  # bounded: a path visits each cell once
+        code = state[j] & _CODE_BITS
+        if code == _START_CODE:
+            break
+        j -= offsets[code - 1]
         chain.append(j)
-        j = parent[j]
     chain.reverse()
-    return SearchResult(
-        cells=grid.cells(chain), cost=g[t], expanded=expanded, generated=len(g),
-        expanded_cells=grid.cells(closed) if return_expanded else None)
+    expanded_cells = None
+    if return_expanded:
+        closed = np.flatnonzero(np.frombuffer(state, dtype=np.uint8) & _CLOSED)
+        expanded_cells = grid.cells(closed)
+    return SearchResult(cells=grid.cells(chain), cost=cost, expanded=expanded,
+                        generated=generated, expanded_cells=expanded_cells)
+
+
+def _heuristic(kind, d_row, d_col):
+    """Unweighted heuristic [cells] of an offset to the goal (eqs. 2-4)."""
+    y, x = abs(d_row), abs(d_col)
+    if kind == _EUCLIDEAN:
+        return math.sqrt(x * x + y * y)
+    if kind == _OCTILE:
+        return x + y + _ROOT2_MINUS_2 * min(x, y)
+    if kind == _MANHATTAN:
+        return float(x + y)
+    return 0.0
+
+
+def _check_limits(expanded, budget, deadline, time_limit_s, cancel):
+    """Raise when the expansion budget, the deadline or the caller says stop."""
+    if expanded >= budget:
+        raise PlannerTimedOut(
+            f'search stopped after {expanded} expansions without reaching the goal')
+    if deadline is not None and time.monotonic() > deadline:
+        raise PlannerTimedOut(
+            f'search stopped after {time_limit_s:g} s without reaching the goal')
+    if cancel is not None and cancel():
+        raise PlannerCancelled('search cancelled by the caller')

@@ -404,8 +404,12 @@ def occupancy_grid_to_grid_map(msg, frame_id, unknown_is_occupied=False,
     data = msg.data
     if isinstance(data, array.array):
         data = np.frombuffer(data, dtype=np.int8) if data.itemsize == 1 else np.asarray(data)
+    # The message stores the resolution as float32 (0.1 arrives as
+    # 0.100000001); rounding to float32's 7 significant digits gives back
+    # the sender's value, so a point on a cell border stays in its cell.
+    resolution = float(f'{info.resolution:.7g}')
     return map_files.from_occupancy_values(
-        info.width, info.height, info.resolution, origin, data,
+        info.width, info.height, resolution, origin, data,
         unknown_is_occupied=unknown_is_occupied, occupied_threshold=occupied_threshold,
         max_cells=max_cells)
 

@@ -1,0 +1,671 @@
+"""``fusion-planner demo``: the three ROS 2 nodes driving a robot in the simulator.
+
+Usage::
+
+    fusion-planner demo [--scenario FILE] [--time-limit S] [--real-time-factor F]
+        [--plot PNG] [--processes]
+
+Runs ``simulator``, ``global_planner`` and ``local_planner`` headless on a
+scenario (default: the bundled ``config/scenarios/demo.yaml``, with moving
+obstacles and an obstacle the map does not show) until the robot arrives or
+the simulated time limit passes:
+
+- by default in this process, the three nodes in one
+  ``MultiThreadedExecutor``;
+- with ``--processes``, as three processes of the installed executables
+  (``--ros-args --params-file config/params.yaml`` plus the scenario's robot
+  as ``-p`` overrides), talking over DDS; their logs go beside the picture.
+
+The simulator publishes the simulated time on ``/clock`` and the planners run
+on it (``use_sim_time``), ``--real-time-factor`` times faster than the wall
+clock. While it runs, one updating line on stderr shows the simulated time,
+the distance to the goal and the collisions so far. At the end one outcome
+line goes to stdout (arrived, simulated time, driven path length,
+collisions, minimum clearance) and a picture of the run is written
+(default ``output/demo.png``).
+
+Exit status: 0 the robot arrived without a collision, 1 it did not arrive or
+collided, 2 bad input (unreadable scenario, ROS 2 not importable). Every
+ROS topic used is relative, so ``ROS_DOMAIN_ID`` keeps runs apart.
+"""
+
+import math
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import fields
+
+import numpy as np
+
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.scenario import load_scenario
+from fusion_planner.core.simulation import follower_params
+
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+#: Default picture of the run.
+DEFAULT_PLOT = pathlib.Path('output') / 'demo.png'
+#: Default speed-up of simulated time over wall time [1].
+DEFAULT_REAL_TIME_FACTOR = 10.0
+#: Wall period of the progress line [s].
+PROGRESS_PERIOD_S = 0.25
+#: Wall period of the simulator's diagnostics during the demo [s].
+SIMULATOR_STATUS_PERIOD_S = 0.25
+#: Wall time without the simulated clock advancing after which the run is
+#: abandoned [s].
+CLOCK_STALL_S = 30.0
+#: Wall time allowed on top of ``time limit / real-time factor`` [s] (start-up,
+#: discovery, a slower machine).
+WALL_SLACK_S = 60.0
+#: Wall time the final simulator status is waited for after the end [s].
+FINAL_STATUS_WAIT_S = 3.0
+#: Wall time a node process gets to exit after SIGINT before it is killed [s].
+PROCESS_STOP_TIMEOUT_S = 10.0
+#: Wall time the executor gets to finish its callbacks when stopping [s].
+SPIN_STOP_TIMEOUT_S = 5.0
+#: Timeout of one ``spin_once`` of the background spinner [s].
+SPIN_POLL_S = 0.05
+#: Node names of the package, in start order.
+NODES = ('simulator', 'global_planner', 'local_planner')
+
+
+def add_parser(subparsers):
+    """Register the ``demo`` sub-command."""
+    parser = subparsers.add_parser(
+        'demo', help='run the three ROS 2 nodes on a simulated scenario',
+        description='Run simulator, global_planner and local_planner headless on a scenario '
+                    'with moving obstacles until the robot arrives or the time limit passes; '
+                    'print the outcome and draw the run. Exit status: 0 arrived without '
+                    'collision, 1 otherwise, 2 bad input.')
+    parser.add_argument('--scenario', metavar='FILE',
+                        help='scenario YAML (default: the bundled config/scenarios/demo.yaml)')
+    parser.add_argument('--time-limit', type=float, metavar='S',
+                        help="simulated time limit [s] "
+                             "(default: the scenario's limits.time_limit_s)")
+    parser.add_argument('--real-time-factor', type=float, default=DEFAULT_REAL_TIME_FACTOR,
+                        metavar='F',
+                        help='simulated seconds per wall second (default: %(default)s)')
+    parser.add_argument('--plot', default=str(DEFAULT_PLOT), metavar='PNG',
+                        help='picture of the run (default: %(default)s)')
+    parser.add_argument('--processes', action='store_true',
+                        help='run the nodes as three processes of the installed executables '
+                             'instead of one executor in this process')
+    parser.set_defaults(func=run)
+    return parser
+
+
+# -- wiring -----------------------------------------------------------------------
+
+def node_parameters(scenario, scenario_path, real_time_factor):
+    """Parameter overrides that set the three nodes up for a scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    scenario_path : str or os.PathLike
+        The file the simulator loads.
+    real_time_factor : float
+        Simulated seconds per wall second.
+
+    Returns
+    -------
+    dict
+        ``{node name: {parameter: value}}``; values typed as the nodes
+        declare them (floats stay floats). The planners run on simulated time;
+        the robot radius, speed limits and follower tuning come from the
+        scenario (:func:`~fusion_planner.core.simulation.follower_params`), the
+        control and simulation rates from its ``limits.dt``.
+
+    Raises
+    ------
+    InvalidInput
+        If the scenario's follower overrides are invalid.
+    """
+    from fusion_planner.ros import global_planner, local_planner, simulator
+
+    rate = 1.0 / scenario.limits.dt
+    planner = scenario.planner
+    follower = follower_params(scenario)
+    local = {f.name: getattr(follower, f.name) for f in fields(follower)
+             if f.name not in ('apf', 'control_period')}
+    local.update({local_planner.APF_PREFIX + f.name: getattr(follower.apf, f.name)
+                  for f in fields(follower.apf) if f.name != 'robot_radius'})
+    local['control_rate'] = rate
+    values = {
+        'simulator': {'scenario': str(scenario_path), 'rate': rate,
+                      'real_time_factor': float(real_time_factor), 'publish_goal': True,
+                      'sync_with_controller': True, 'max_command_lag': 0.0, 'start_paused': True,
+                      'diagnostics_period': SIMULATOR_STATUS_PERIOD_S},
+        'global_planner': {'algorithm': planner.algorithm, 'neighbourhood': planner.neighbourhood,
+                           'alpha': planner.alpha, 'beta': planner.beta, 'gamma': planner.gamma,
+                           'refine': planner.refine, 'robot_radius': planner.robot_radius,
+                           'safety_distance': planner.safety_distance},
+        'local_planner': local,
+    }
+    specs = {'simulator': simulator.PARAMETER_SPECS,
+             'global_planner': global_planner.PARAMETER_SPECS,
+             'local_planner': local_planner.PARAMETER_SPECS}
+    typed = {}
+    for node, params in values.items():
+        kinds = {s.name: type(s.default) for s in specs[node]}
+        # a core field the node does not declare keeps the node's default
+        typed[node] = {name: kinds[name](value) for name, value in params.items() if name in kinds}
+        if node != 'simulator':
+            typed[node]['use_sim_time'] = True
+    return typed
+
+
+def ros_arg_overrides(params):
+    """``-p name:=value`` arguments for ``--ros-args`` (YAML-typed values).
+
+    Examples
+    --------
+    >>> ros_arg_overrides({'rate': 20.0, 'publish_goal': True, 'neighbourhood': 8})
+    ['-p', 'rate:=20.0', '-p', 'publish_goal:=true', '-p', 'neighbourhood:=8']
+    """
+    out = []
+    for name, value in params.items():
+        if isinstance(value, bool):
+            text = 'true' if value else 'false'
+        elif isinstance(value, float):
+            text = repr(value)
+        else:
+            text = str(value)
+        out += ['-p', f'{name}:={text}']
+    return out
+
+
+def node_command(node):
+    """The command line that starts a node's process.
+
+    The console script installed beside this Python (a pip install into the
+    same environment), else ``python -m fusion_planner.ros.<node>`` (a source
+    tree or a colcon workspace, whose scripts live in lib/fusion_planner).
+    """
+    script = pathlib.Path(sys.executable).parent / node
+    if script.is_file() and os.access(script, os.X_OK):
+        return [str(script)]
+    return [sys.executable, '-m', f'fusion_planner.ros.{node}']
+
+
+# -- recording ----------------------------------------------------------------------
+
+class RunRecorder:
+    """What the demo watches of a run, fed with ROS messages (no rclpy needed).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Gives the goal and the number of moving obstacles.
+    goal_tolerance : float
+        The local planner's arrival radius [m].
+
+    Notes
+    -----
+    Methods are called from executor threads and read from the main thread;
+    a lock guards the state.
+    """
+
+    def __init__(self, scenario, goal_tolerance):
+        self.scenario = scenario
+        self.goal = np.asarray(scenario.goal, dtype=float)
+        # The plan ends at the centre of the goal's cell, up to half a cell
+        # diagonal from the goal; one diagonal of slack covers that.
+        self.arrival_radius = float(goal_tolerance) + math.sqrt(2.0) * scenario.grid.resolution
+        self._lock = threading.Lock()
+        self.sim_time = 0.0
+        self.clock_wall = time.monotonic()  # wall time the clock last advanced
+        self.started_wall = None  # wall time the simulated clock first moved
+        self.arrived_wall = None  # wall time the arrival was seen
+        self.poses = []        # (x, y, yaw)
+        self.tracks = []       # (K, 2) per obstacle message
+        self.plan = None
+        self.local_status = {}
+        self.sim_status = {}
+        self.sim_status_wall = 0.0
+        self.arrived_at = None  # simulated time of arrival [s]
+        self.failure = None
+
+    def on_clock(self, msg):
+        t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        with self._lock:
+            if t != self.sim_time:
+                self.clock_wall = time.monotonic()
+                if self.started_wall is None:
+                    self.started_wall = self.clock_wall
+            self.sim_time = t
+
+    def on_odom(self, msg):
+        p = msg.pose.pose
+        yaw = 2.0 * math.atan2(p.orientation.z, p.orientation.w)
+        with self._lock:
+            self.poses.append((p.position.x, p.position.y, yaw))
+
+    def on_obstacles(self, msg):
+        k = len(self.scenario.moving_obstacles)
+        positions = np.full((k, 2), np.nan)
+        for marker in msg.markers:
+            if 0 <= marker.id < k:
+                positions[marker.id] = (marker.pose.position.x, marker.pose.position.y)
+        with self._lock:
+            if self.tracks and np.isnan(positions).any():
+                positions = np.where(np.isnan(positions), self.tracks[-1], positions)
+            self.tracks.append(positions)
+
+    def on_plan(self, msg):
+        if len(msg.poses):
+            with self._lock:
+                self.plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
+
+    def on_diagnostics(self, msg):
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9  # sender's clock
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            with self._lock:
+                if status.name.endswith('/local_planner'):
+                    self.local_status = values
+                    if values.get('status') == 'arrived' and self.arrived_at is None \
+                            and self.distance_to_goal() <= self.arrival_radius:
+                        self.arrived_at = stamp  # the local planner runs on simulated time
+                        self.arrived_wall = time.monotonic()
+                    if values.get('status') == 'failed':
+                        self.failure = f'local planner failed: {values.get("last_error", "")}'
+                elif status.name.endswith('/simulator'):
+                    self.sim_status = values
+                    self.sim_status_wall = time.monotonic()
+
+    def real_time_factor(self):
+        """Simulated over wall time from the first clock tick to arrival (or now); NaN before."""
+        with self._lock:
+            if self.started_wall is None:
+                return math.nan
+            end = self.arrived_wall if self.arrived_wall is not None else time.monotonic()
+            sim_end = self.arrived_at if self.arrived_at is not None else self.sim_time
+        return sim_end / max(end - self.started_wall, 1e-9)
+
+    def distance_to_goal(self):
+        """Distance [m] from the last odometry pose to the goal (inf before any)."""
+        if not self.poses:
+            return math.inf
+        x, y, _ = self.poses[-1]
+        return float(math.hypot(x - self.goal[0], y - self.goal[1]))
+
+    def collisions(self):
+        """Contact events reported by the simulator so far."""
+        with self._lock:
+            return int(self.sim_status.get('collisions', 0))
+
+    def snapshot(self):
+        """``(sim time [s], distance to goal [m], collisions)`` now."""
+        with self._lock:
+            return self.sim_time, self.distance_to_goal(), int(self.sim_status.get('collisions', 0))
+
+    def result(self, reached, failure):
+        """An :class:`~fusion_planner.core.simulation.EpisodeResult` of the run (for the figure)."""
+        from fusion_planner.core.simulation import EpisodeResult
+        from fusion_planner.ros.local_planner import key_nodes_of
+
+        with self._lock:
+            trajectory = np.array(self.poses, dtype=float).reshape(-1, 3)
+            k = len(self.scenario.moving_obstacles)
+            tracks = np.array(self.tracks, dtype=float).reshape(-1, k, 2) if self.tracks else None
+            sim = dict(self.sim_status)
+            local = dict(self.local_status)
+            plan = self.plan
+            time_s = self.arrived_at if self.arrived_at is not None else self.sim_time
+        odom_length = float(np.sum(np.hypot(*np.diff(trajectory[:, :2], axis=0).T))) \
+            if len(trajectory) > 1 else 0.0
+        return EpisodeResult(
+            scenario=self.scenario.name, controller=str(local.get('controller', 'fusion')),
+            seed=self.scenario.seed, reached=reached,
+            collisions=int(sim.get('collisions', 0)), time_s=time_s,
+            path_length_m=float(sim.get('distance_travelled_m', odom_length)),
+            min_clearance_m=float(sim.get('min_clearance_m', 'nan')),
+            stuck_events=int(local.get('stuck_events', 0)), failure=failure,
+            plan_length_m=None if plan is None else
+            float(np.sum(np.hypot(*np.diff(plan, axis=0).T))),
+            trajectory=trajectory, obstacle_tracks=tracks, plan_path=plan,
+            key_nodes=None if plan is None else key_nodes_of(plan))
+
+
+def attach_recorder(node, recorder):
+    """Subscribe a (monitor) node's topics into a :class:`RunRecorder`."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from nav_msgs.msg import Odometry, Path
+    from rclpy.qos import qos_profile_sensor_data
+    from rosgraph_msgs.msg import Clock
+    from visualization_msgs.msg import MarkerArray
+
+    from fusion_planner.ros.global_planner import LATCHED_QOS
+
+    node.create_subscription(Clock, 'clock', recorder.on_clock, 10)
+    node.create_subscription(Odometry, 'odom', recorder.on_odom, qos_profile_sensor_data)
+    node.create_subscription(MarkerArray, 'obstacles', recorder.on_obstacles, 10)
+    node.create_subscription(Path, 'plan', recorder.on_plan, LATCHED_QOS)
+    node.create_subscription(DiagnosticArray, 'diagnostics', recorder.on_diagnostics, 50)
+
+
+# -- running ------------------------------------------------------------------------
+
+def namespace_ros_args(namespace):
+    """``--ros-args`` rules that put a node under ``namespace`` with its own clock.
+
+    rclpy's time source listens on the absolute ``/clock``, and the simulator
+    publishes the relative ``clock``; under a namespace ``/robot1`` the rule
+    ``/clock:=clock`` makes the nodes follow ``/robot1/clock``, so two
+    simulated robots keep two clocks apart.
+
+    Examples
+    --------
+    >>> namespace_ros_args('/robot1')
+    ['-r', '__ns:=/robot1', '-r', '/clock:=clock']
+    """
+    return ['-r', f'__ns:={namespace}', '-r', '/clock:=clock']
+
+
+def make_nodes(context, params, ros_args=()):
+    """The three nodes for ``params`` (see :func:`node_parameters`) in one context.
+
+    Parameters
+    ----------
+    context : rclpy.Context
+    params : dict
+        ``{node name: {parameter: value}}``.
+    ros_args : sequence of str
+        ROS arguments of every node, as after ``--ros-args`` on a command line
+        (e.g. :func:`namespace_ros_args`).
+
+    Returns
+    -------
+    list of rclpy.node.Node
+        Simulator, global planner, local planner. Destroy them when done.
+    """
+    from rclpy.parameter import Parameter
+
+    from fusion_planner.ros.global_planner import GlobalPlannerNode
+    from fusion_planner.ros.local_planner import LocalPlannerNode
+    from fusion_planner.ros.simulator import SimulatorNode
+
+    classes = {'simulator': SimulatorNode, 'global_planner': GlobalPlannerNode,
+               'local_planner': LocalPlannerNode}
+    nodes = []
+    try:
+        for name in NODES:
+            overrides = [Parameter(k, value=v) for k, v in params[name].items()]
+            cli_args = ['--ros-args', *ros_args] if ros_args else None
+            nodes.append(classes[name](context=context, parameter_overrides=overrides,
+                                       cli_args=cli_args))
+    except BaseException:
+        for node in nodes:
+            node.destroy_node()
+        raise
+    return nodes
+
+
+def start_processes(params, params_file, log_dir, extra_ros_args=(), env=None):
+    """Start the three node processes.
+
+    Parameters
+    ----------
+    params : dict
+        ``{node name: {parameter: value}}`` passed as ``-p`` overrides.
+    params_file : str or os.PathLike
+        Passed as ``--params-file``.
+    log_dir : pathlib.Path
+        Each process writes ``<node>.log`` (stdout and stderr) here.
+    extra_ros_args : sequence of str
+        Appended after ``--ros-args`` (e.g. ``-r __ns:=/robot1``).
+    env : dict, optional
+        Environment; default this process's.
+
+    Returns
+    -------
+    list of (str, subprocess.Popen, pathlib.Path)
+        Node name, process and log file of each.
+    """
+    log_dir.mkdir(parents=True, exist_ok=True)
+    procs = []
+    for name in NODES:
+        cmd = node_command(name) + ['--ros-args', '--params-file', str(params_file),
+                                    *extra_ros_args, *ros_arg_overrides(params[name])]
+        log_path = log_dir / f'{name}.log'
+        with open(log_path, 'wb') as log:
+            procs.append((name, subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
+                                                 env=env), log_path))
+    return procs
+
+
+def stop_processes(procs, timeout_s=PROCESS_STOP_TIMEOUT_S):
+    """SIGINT every process, wait, kill what is left; returns ``{node: exit code}``."""
+    for _, proc, _ in procs:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+    codes = {}
+    deadline = time.monotonic() + timeout_s
+    for name, proc, _ in procs:
+        try:
+            codes[name] = proc.wait(timeout=max(deadline - time.monotonic(), 0.1))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            codes[name] = proc.wait()
+    return codes
+
+
+def watch(recorder, time_limit_s, wall_limit_s, alive=lambda: None, progress=None):
+    """Wait until arrival, failure, the simulated time limit or a stall.
+
+    Parameters
+    ----------
+    recorder : RunRecorder
+    time_limit_s : float
+        Simulated time limit [s].
+    wall_limit_s : float
+        Wall time limit [s].
+    alive : callable
+        Returns None while the nodes run, else a sentence why they stopped.
+    progress : callable, optional
+        ``progress(sim_time, distance, collisions)`` every
+        :data:`PROGRESS_PERIOD_S`.
+
+    Returns
+    -------
+    str or None
+        None on arrival, else the failure sentence.
+    """
+    start = time.monotonic()
+    for _ in range(int(wall_limit_s / PROGRESS_PERIOD_S) + 1):
+        sim_time, distance, collisions = recorder.snapshot()
+        if progress is not None:
+            progress(sim_time, distance, collisions)
+        if recorder.arrived_at is not None:
+            return None
+        if recorder.failure is not None:
+            return recorder.failure
+        if sim_time >= time_limit_s:
+            return (f'time_limit: the goal was not reached within {time_limit_s:g} s '
+                    'of simulated time')
+        stopped = alive()
+        if stopped is not None:
+            return stopped
+        if time.monotonic() - recorder.clock_wall > CLOCK_STALL_S:
+            return f'the simulated clock has not advanced for {CLOCK_STALL_S:g} s of wall time'
+        if time.monotonic() - start > wall_limit_s:
+            break
+        time.sleep(PROGRESS_PERIOD_S)
+    return f'wall time limit of {wall_limit_s:.0f} s reached'
+
+
+class Spinner:
+    """Spin an executor in a background thread until :meth:`stop`.
+
+    Parameters
+    ----------
+    executor : rclpy.executors.Executor
+        With its nodes added.
+
+    Notes
+    -----
+    The thread calls ``spin_once`` with a short timeout, so :meth:`stop`
+    returns within :data:`SPIN_POLL_S` plus the callback in progress. It
+    then waits for the callbacks a ``MultiThreadedExecutor`` already handed
+    to its thread pool (rclpy 7.1's ``Executor.shutdown`` does not), so
+    nodes can be destroyed safely afterwards.
+    """
+
+    def __init__(self, executor):
+        self.executor = executor
+        self._stop = threading.Event()
+        self.error = None
+        self._thread = threading.Thread(target=self._run, name='spinner', daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        from rclpy.executors import ExternalShutdownException
+
+        try:
+            while not self._stop.is_set():
+                self.executor.spin_once(timeout_sec=SPIN_POLL_S)
+        except (ExternalShutdownException, KeyboardInterrupt):
+            pass
+        except Exception as err:  # noqa: BLE001 - reported by whoever stops us
+            self.error = err
+
+    def stop(self):
+        """Stop spinning and wait for every callback in progress (bounded)."""
+        self._stop.set()
+        self._thread.join(timeout=SPIN_STOP_TIMEOUT_S)
+        pool = getattr(self.executor, '_executor', None)  # MultiThreadedExecutor's pool
+        if pool is not None:
+            pool.shutdown(wait=True)
+        self.executor.shutdown(timeout_sec=SPIN_STOP_TIMEOUT_S)
+
+
+def shutdown_executor(spinner, nodes, context=None):
+    """Stop spinning, destroy the nodes, shut the context down (each step optional)."""
+    import rclpy
+
+    if spinner is not None:
+        spinner.stop()
+    for node in nodes:
+        node.destroy_node()
+    if context is not None:
+        rclpy.try_shutdown(context=context)
+
+
+def wait_final_status(recorder, after_wall):
+    """Wait (bounded) for a simulator status newer than ``after_wall`` (monotonic [s])."""
+    deadline = time.monotonic() + FINAL_STATUS_WAIT_S
+    while time.monotonic() < deadline and recorder.sim_status_wall <= after_wall:
+        time.sleep(0.05)
+
+
+def run(args):
+    """Run the demo; returns the exit status (see the module docstring)."""
+    try:
+        import rclpy  # noqa: F401 - only to fail early with a clear message
+    except ImportError as err:
+        print(f'error: ROS 2 (rclpy) is not importable ({err}); install the ros extra '
+              "(pip install 'fusion_planner[ros]') or source a ROS 2 Jazzy install",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    from fusion_planner.ros.simulator import default_scenario_path, share_file
+
+    if not (args.real_time_factor > 0 and math.isfinite(args.real_time_factor)):
+        raise InvalidInput(
+            f'--real-time-factor must be a positive number, got {args.real_time_factor!r}')
+    scenario_path = pathlib.Path(args.scenario or default_scenario_path()).resolve()
+    scenario = load_scenario(scenario_path)
+    time_limit = scenario.limits.time_limit_s if args.time_limit is None else args.time_limit
+    if not (time_limit > 0 and math.isfinite(time_limit)):
+        raise InvalidInput(f'--time-limit must be a positive number of seconds, got {time_limit!r}')
+    params = node_parameters(scenario, scenario_path, args.real_time_factor)
+    recorder = RunRecorder(scenario, params['local_planner']['goal_tolerance'])
+    wall_limit = time_limit / args.real_time_factor * 3.0 + WALL_SLACK_S
+    plot_path = pathlib.Path(args.plot)
+    mode = 'three processes' if args.processes else 'one process'
+    print(f"demo: scenario '{scenario.name}' ({scenario_path}), {mode}, "
+          f'real-time factor {args.real_time_factor:g}, time limit {time_limit:g} s',
+          file=sys.stderr)
+
+    def progress(sim_time, distance, collisions):
+        print(f'\r  sim {sim_time:7.2f} s   distance to goal {distance:6.2f} m   '
+              f'collisions {collisions}   ', end='', file=sys.stderr, flush=True)
+
+    context = rclpy.Context()
+    # Ctrl-C stays a KeyboardInterrupt here: the finally below stops everything.
+    rclpy.init(context=context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    wall_start = time.monotonic()
+    procs, nodes, spinner = [], [], None
+    try:
+        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.node import Node
+
+        nodes.append(Node('demo_monitor', context=context))
+        attach_recorder(nodes[0], recorder)
+        executor = MultiThreadedExecutor(context=context)
+        executor.add_node(nodes[0])
+        if args.processes:
+            procs = start_processes(params, share_file('config/params.yaml'),
+                                    plot_path.parent / 'demo_logs')
+
+            def alive():
+                for name, proc, log_path in procs:
+                    if proc.poll() is not None:
+                        return f'node {name} exited with code {proc.returncode} (log: {log_path})'
+                return None
+        else:
+            nodes += make_nodes(context, params)
+            for node in nodes[1:]:  # keep the progress line readable: warnings and errors only
+                node.get_logger().set_level(rclpy.logging.LoggingSeverity.WARN)
+            for node in nodes[1:]:
+                executor.add_node(node)
+
+            def alive():
+                return None if context.ok() else 'ROS was shut down'
+        spinner = Spinner(executor)
+        failure = watch(recorder, time_limit, wall_limit, alive, progress)
+        end_wall = time.monotonic()
+        wait_final_status(recorder, end_wall)
+        wall_time = end_wall - wall_start
+    finally:
+        print(file=sys.stderr)
+        codes = stop_processes(procs) if procs else {}
+        shutdown_executor(spinner, nodes, context)
+    reached = failure is None
+    result = recorder.result(reached, failure)
+    collided = result.collisions > 0
+    clearance = (f'{result.min_clearance_m:.3f} m' if math.isfinite(result.min_clearance_m)
+                 else 'n/a')
+    print(f"arrived: {'yes' if reached else 'no'}   sim time: {result.time_s:.2f} s   "
+          f'(wall {wall_time:.1f} s with start-up, {recorder.real_time_factor():.1f}x real time)   '
+          f'path length: {result.path_length_m:.2f} m   collisions: {result.collisions}   '
+          f'min clearance: {clearance}')
+    if failure is not None:
+        print(f'not arrived: {failure}', file=sys.stderr)
+    bad_exits = {name: code for name, code in codes.items() if code != 0}
+    if bad_exits:
+        print(f'node processes exited with {bad_exits} (logs in {plot_path.parent / "demo_logs"})',
+              file=sys.stderr)
+    _draw(scenario, result, plot_path)
+    return EXIT_OK if reached and not collided else EXIT_FAILED
+
+
+def _draw(scenario, result, plot_path):
+    """Write the picture of the run; a failure to draw is reported, not fatal."""
+    try:
+        from fusion_planner.cli.sim_plot import episode_title, plot_episode
+    except ImportError as err:
+        print(f'no picture: matplotlib is not importable ({err})', file=sys.stderr)
+        return
+    try:
+        plot_path.parent.mkdir(parents=True, exist_ok=True)
+        plot_episode(scenario, result, plot_path,
+                     title='ROS 2 nodes, ' + episode_title(scenario, result))
+    except (OSError, ValueError) as err:
+        print(f'could not write {plot_path}: {err}', file=sys.stderr)
+        return
+    print(f'picture: {plot_path}', file=sys.stderr)

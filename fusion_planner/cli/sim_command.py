@@ -1,0 +1,229 @@
+"""``fusion-planner sim``: closed-loop simulation of one scenario or of a random batch.
+
+Usage::
+
+    fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--json] [--plot PNG]
+    fusion-planner sim --random N [--seed S] [--controller NAME ...] [--jobs J] [--json]
+
+Contract:
+
+- ``NAME`` is one of ``fusion``, ``apf``, ``classic-apf``, ``astar-track``.
+  A scenario runs ``fusion`` by default; a batch runs all four side by side
+  unless ``--controller`` is given (it may be repeated).
+- ``--seed`` overrides the scenario's world seed (random walks, scan noise);
+  for ``--random`` it is the batch seed (default 0): the same seed gives the
+  same scenarios and the same results.
+- ``--json`` prints one JSON object on stdout. A scenario: ``reached``,
+  ``collisions``, ``time_s``, ``path_length_m``, ``min_clearance_m``,
+  ``stuck_events``, ``failure`` (null or ``'<code>: <sentence>'``) plus
+  ``scenario``, ``controller``, ``seed``, ``plan_length_m`` and
+  ``moving_collisions`` (the contacts a moving obstacle began). A batch:
+  ``scenarios``, ``seed``, ``wall_time_s``, ``controllers`` (per controller:
+  ``success_rate``, ``reached``, ``episodes``, ``collisions``,
+  ``moving_collisions``, ``episodes_with_collisions``, ``mean_time_s``,
+  ``path_length_over_optimal``, ``mean_min_clearance_m``,
+  ``stuck_events``, ``failures``) and ``episodes`` (one row per run).
+- ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6.
+- A batch reports its progress with an estimated time to completion on
+  stderr.
+- Exit status: 0 the goal was reached (a batch: the batch completed), 1 the
+  goal was not reached, 2 bad input (unreadable or invalid scenario, unknown
+  controller, bad option). Errors are one line on stderr, never a traceback.
+"""
+
+import json
+import logging
+import sys
+import time
+
+from fusion_planner.core.errors import PlanningError
+from fusion_planner.core.simulation import CONTROLLERS
+
+EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
+
+#: Shortest interval between two progress lines when stderr is not a terminal [s].
+PROGRESS_INTERVAL_S = 5.0
+
+
+def add_parser(subparsers):
+    """Register the ``sim`` sub-command."""
+    parser = subparsers.add_parser(
+        'sim', help='simulate a controller on a scenario, or a batch of random scenarios',
+        description='Closed-loop simulation: the improved A* plans on the known map, a local '
+                    'controller drives a simulated robot among unknown and moving obstacles. '
+                    'Exit status: 0 reached (batch: completed), 1 not reached, 2 bad input.')
+    parser.add_argument('--scenario', metavar='FILE', help='scenario YAML (see docs/SCENARIOS.md)')
+    parser.add_argument('--random', type=_count, metavar='N',
+                        help='run a batch of N generated scenarios instead')
+    parser.add_argument('--controller', action='append', metavar='NAME',
+                        help=f'one of {", ".join(CONTROLLERS)}; default fusion for a scenario, '
+                             'all four for a batch; repeat to select several for a batch')
+    parser.add_argument('--seed', type=_seed, metavar='N',
+                        help='world seed of a scenario (default: the file\'s), batch seed (default 0)')
+    parser.add_argument('--jobs', type=_count, default=1, metavar='J',
+                        help='worker processes for a batch (default 1; results do not depend on it)')
+    parser.add_argument('--json', action='store_true', help='print one JSON object')
+    parser.add_argument('--plot', metavar='PNG', help='draw the run (scenario only)')
+    parser.set_defaults(func=run)
+    return parser
+
+
+def run(args):
+    """Run ``sim``; returns the exit status."""
+    if not getattr(args, 'verbose', False):
+        # failures are reported in the results; the controllers' warnings would repeat them
+        logging.getLogger('fusion_planner.core.follow').setLevel(logging.ERROR)
+    try:
+        controllers = _controllers(args)
+        if (args.scenario is None) == (args.random is None):
+            raise _BadInput('give exactly one of --scenario FILE or --random N')
+        if args.random is not None:
+            if args.plot:
+                raise _BadInput('--plot draws one scenario; it cannot be used with --random')
+            return _run_batch(args, controllers)
+        if len(controllers) != 1:
+            raise _BadInput('a scenario runs one controller; give --controller once')
+        return _run_scenario(args, controllers[0])
+    except (_BadInput, PlanningError) as err:
+        print(f'error: {_one_line(err)}', file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+class _BadInput(Exception):
+    """A bad command line (reported as one line, exit 2)."""
+
+
+def _controllers(args):
+    names = args.controller or (['fusion'] if args.random is None else list(CONTROLLERS))
+    for name in names:
+        if name not in CONTROLLERS:
+            raise _BadInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
+    return list(dict.fromkeys(names))
+
+
+def _run_scenario(args, controller):
+    from fusion_planner.core.scenario import load_scenario
+    from fusion_planner.core.simulation import run_episode
+
+    scenario = load_scenario(args.scenario)
+    result = run_episode(scenario, controller, seed=args.seed, record=bool(args.plot))
+    if args.plot:
+        try:
+            from fusion_planner.cli.sim_plot import plot_episode
+            plot_episode(scenario, result, args.plot)
+        except (OSError, ValueError) as err:
+            raise _BadInput(f'cannot write the plot {args.plot}: {err}') from None
+    summary = result.summary()
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(_episode_line(summary))
+    return EXIT_OK if result.reached else EXIT_NOT_REACHED
+
+
+def _run_batch(args, controllers):
+    from fusion_planner.core.simulation import run_batch
+
+    seed = 0 if args.seed is None else args.seed
+    reporter = _Progress(args.random)
+    batch = run_batch(args.random, seed, controllers=controllers, progress=reporter,
+                      workers=args.jobs)
+    reporter.finish()
+    if args.json:
+        print(json.dumps(batch.as_dict()))
+    else:
+        print(batch_table(batch))
+    return EXIT_OK
+
+
+def _episode_line(s):
+    outcome = 'reached' if s['reached'] else f'NOT reached ({s["failure"]})'
+    return (f'{s["scenario"]} / {s["controller"]} (seed {s["seed"]}): {outcome}; '
+            f'time {s["time_s"]:.1f} s, path {s["path_length_m"]:.2f} m, '
+            f'collisions {s["collisions"]}, min clearance {_num(s["min_clearance_m"], "m")}, '
+            f'stuck events {s["stuck_events"]}')
+
+
+def batch_table(batch):
+    """The side-by-side table of a batch (Markdown, as in docs/ALGORITHM.md)."""
+    lines = [f'{batch.scenarios} random scenarios, seed {batch.seed}, '
+             f'{batch.wall_time_s:.0f} s wall time',
+             '',
+             '| controller | success | collisions (episodes; by moving obstacles) | '
+             'mean time [s] | path length / optimal | mean min clearance [m] | stuck events |',
+             '|---|---|---|---|---|---|---|']
+    for name, s in batch.controllers.items():
+        lines.append(
+            f'| {name} | {100 * s.success_rate:.1f}% ({s.reached}/{s.episodes}) | '
+            f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions}) | '
+            f'{_num(s.mean_time_s)} | '
+            f'{_num(s.path_length_over_optimal, digits=3)} | {_num(s.mean_min_clearance_m)} | '
+            f'{s.stuck_events} |')
+    return '\n'.join(lines)
+
+
+def _num(value, unit='', digits=2):
+    if value is None:
+        return '-'
+    return f'{value:.{digits}f}' + (f' {unit}' if unit else '')
+
+
+class _Progress:
+    """Progress with an estimated time to completion on stderr."""
+
+    def __init__(self, total):
+        self.total = total
+        self.t0 = time.monotonic()
+        self.last = -PROGRESS_INTERVAL_S
+        self.tty = sys.stderr.isatty()
+
+    def __call__(self, done, total):
+        now = time.monotonic()
+        if not self.tty and now - self.last < PROGRESS_INTERVAL_S and done < total:
+            return
+        self.last = now
+        elapsed = now - self.t0
+        eta = elapsed / done * (total - done)
+        text = (f'sim: {done}/{total} scenarios ({100 * done / total:.0f}%), '
+                f'elapsed {_clock(elapsed)}, ETA {_clock(eta)}')
+        if self.tty:
+            sys.stderr.write('\r' + text + ' ' * 4)
+        else:
+            sys.stderr.write(text + '\n')
+        sys.stderr.flush()
+
+    def finish(self):
+        if self.tty:
+            sys.stderr.write('\n')
+            sys.stderr.flush()
+
+
+def _clock(seconds):
+    seconds = int(round(seconds))
+    return f'{seconds // 60}m{seconds % 60:02d}s'
+
+
+def _one_line(err):
+    return ' '.join(str(err).split())
+
+
+def _count(text):
+    import argparse
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a positive integer, got {text!r}') from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'expected a positive integer, got {text!r}')
+    return value
+
+
+def _seed(text):
+    import argparse
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected a non-negative integer seed, got {text!r}') from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f'expected a non-negative integer seed, got {text!r}')
+    return value

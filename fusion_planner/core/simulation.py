@@ -1,0 +1,514 @@
+"""Closed-loop runs: plan once, then sense, decide and move until done.
+
+:func:`run_episode` runs one controller on one
+:class:`~fusion_planner.core.scenario.Scenario`: the global planner plans on
+the **known** map only (inflated by ``scenario.planner.robot_radius``), the
+controller gets the plan with its ends set to the exact start and goal (or
+just ``[start, goal]`` for the pure field controllers), and the loop runs at
+the scenario's ``dt``::
+
+    scan -> Observation(scan hit points, tracked obstacles) -> controller.compute
+         -> world.step(v, omega)
+
+until the robot arrives (within the goal tolerance *and* the controller
+reports ``'arrived'``), the controller reports ``'failed'`` or
+``'no_path'``, the contact-event limit is reached, or time runs out.
+:func:`run_batch` runs several controllers on generated scenarios and
+summarises them side by side.
+
+Failure reasons are ``'<code>: <sentence>'`` with code one of
+``no_path``, ``controller_failed``, ``collisions``, ``time_limit``.
+"""
+
+import concurrent.futures
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fusion_planner.core import follow
+from fusion_planner.core.errors import InvalidInput, PlanningError
+from fusion_planner.core.planner import GlobalPlanner
+from fusion_planner.core.scenario import RandomScenarioConfig, random_scenario
+from fusion_planner.core.world import World
+
+LOGGER = logging.getLogger(__name__)
+
+#: Controllers, in the order reports list them.
+CONTROLLERS = follow.CONTROLLER_NAMES
+#: Controllers that follow the global plan (the others get ``[start, goal]``).
+PLAN_FOLLOWERS = ('fusion', 'astar-track')
+#: Slack on the arrival distance check [m] (floating point only).
+ARRIVAL_SLACK_M = 1e-9
+
+
+@dataclass
+class EpisodeResult:
+    """The outcome of one closed-loop run.
+
+    Attributes
+    ----------
+    scenario : str
+        Scenario name.
+    controller : str
+    seed : int
+        Seed of the world (random walks, scan noise).
+    reached : bool
+        Arrived within the goal tolerance with status ``'arrived'``.
+    collisions : int
+        Contact events (a contact that lasts several steps counts once).
+    moving_collisions : int
+        Those of them that began with a moving obstacle overlapping the robot
+        (rather than the robot driving into a static obstacle).
+    time_s : float
+        Simulated time at the end [s].
+    path_length_m : float
+        Length of the driven trajectory [m].
+    min_clearance_m : float
+        Smallest distance [m] between the robot's boundary and any obstacle
+        over the run (0 on contact; NaN when nothing was simulated).
+    stuck_events : int
+        Local-minimum detections reported by the controller.
+    failure : str or None
+        ``'<code>: <sentence>'`` when not reached.
+    plan_length_m : float or None
+        Length of the global plan on the known map [m] (None: no plan).
+    trajectory : ndarray, float64, shape (T, 3) or None
+        Robot poses ``(x, y, yaw)`` at ``t = 0, dt, ..., time_s``
+        (``record=True`` only).
+    obstacle_tracks : ndarray, float64, shape (T, K, 2) or None
+        Moving obstacle centres at the same instants (``record=True`` only).
+    plan_path : ndarray, float64, shape (N, 2) or None
+        The global plan.
+    key_nodes : ndarray, float64, shape (M, 2) or None
+        Its key nodes.
+    escape_points : ndarray, float64, shape (E, 2)
+        Positions where the controller's status became ``'stuck_escaping'``.
+    """
+
+    scenario: str
+    controller: str
+    seed: int
+    reached: bool
+    collisions: int
+    time_s: float
+    path_length_m: float
+    min_clearance_m: float
+    stuck_events: int
+    moving_collisions: int = 0
+    failure: str = None
+    plan_length_m: float = None
+    trajectory: np.ndarray = field(default=None, repr=False)
+    obstacle_tracks: np.ndarray = field(default=None, repr=False)
+    plan_path: np.ndarray = field(default=None, repr=False)
+    key_nodes: np.ndarray = field(default=None, repr=False)
+    escape_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
+
+    def summary(self):
+        """The JSON-ready figures (issue 3, item 6) plus identification.
+
+        Returns
+        -------
+        dict
+            ``reached``, ``collisions``, ``time_s``, ``path_length_m``,
+            ``min_clearance_m``, ``stuck_events``, ``failure`` (None or a
+            reason), ``scenario``, ``controller``, ``seed``,
+            ``plan_length_m``, ``moving_collisions``.
+        """
+        return {
+            'scenario': self.scenario,
+            'controller': self.controller,
+            'seed': self.seed,
+            'reached': bool(self.reached),
+            'collisions': int(self.collisions),
+            'moving_collisions': int(self.moving_collisions),
+            'time_s': round(float(self.time_s), 3),
+            'path_length_m': round(float(self.path_length_m), 3),
+            'min_clearance_m': (round(float(self.min_clearance_m), 3)
+                                if math.isfinite(self.min_clearance_m) else None),
+            'stuck_events': int(self.stuck_events),
+            'failure': self.failure,
+            'plan_length_m': None if self.plan_length_m is None else round(float(self.plan_length_m), 3),
+        }
+
+
+def follower_params(scenario):
+    """The controllers' parameters of a scenario (see :meth:`Scenario.follower_params`)."""
+    return scenario.follower_params()
+
+
+def plan_on_known_map(scenario):
+    """Plan from the scenario's start to its goal on the known map.
+
+    Returns
+    -------
+    PlanResult
+
+    Raises
+    ------
+    PlanningError
+        From :meth:`GlobalPlanner.plan`.
+    """
+    return GlobalPlanner(scenario.grid, scenario.planner).plan(scenario.start[:2], scenario.goal)
+
+
+def exact_ends(path, key_nodes, start, goal):
+    """A plan whose first point is exactly ``start`` and last point exactly ``goal``.
+
+    The planner's path runs between the centres of the start and goal cells,
+    up to half a diagonal cell away from the requested points; the follower
+    must aim at the real goal.
+
+    Parameters
+    ----------
+    path : ndarray, shape (N, 2)
+    key_nodes : ndarray, shape (K, 2)
+    start, goal : ndarray, shape (2,)
+
+    Returns
+    -------
+    tuple of ndarray
+        Copies of ``path`` and ``key_nodes`` with their ends replaced.
+    """
+    path = np.array(path, dtype=float, copy=True)
+    key_nodes = np.array(key_nodes, dtype=float, copy=True)
+    path[0], path[-1] = start, goal
+    if len(key_nodes):
+        key_nodes[-1] = goal
+        if len(key_nodes) > 1:
+            key_nodes[0] = start
+    return path, key_nodes
+
+
+def optimal_length(scenario):
+    """Length [m] of the global plan on the *true* static map, or None when there is none.
+
+    The true map is the known map with the unknown static obstacles burnt in
+    (:meth:`Scenario.true_grid`); moving obstacles are ignored. It is the
+    reference of the "path length over optimal" ratio.
+    """
+    try:
+        plan = GlobalPlanner(scenario.true_grid(), scenario.planner).plan(
+            scenario.start[:2], scenario.goal)
+    except PlanningError as err:
+        LOGGER.info('no plan on the true map of %s: %s', scenario.name, err)
+        return None
+    return float(plan.metrics.length_m)
+
+
+def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
+    """Run one controller on one scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    controller_name : str
+        One of :data:`CONTROLLERS`.
+    seed : int, optional
+        World seed; default ``scenario.seed``.
+    record : bool
+        Keep the trajectory, obstacle tracks and plan in the result.
+    plan : PlanResult, optional
+        A plan already made on the known map (saves re-planning when several
+        controllers run on the same scenario).
+
+    Returns
+    -------
+    EpisodeResult
+
+    Raises
+    ------
+    InvalidInput
+        Unknown controller name or invalid follower overrides.
+
+    Examples
+    --------
+    >>> from fusion_planner.core.scenario import random_scenario
+    >>> result = run_episode(random_scenario(5), 'fusion', record=False)
+    >>> result.collisions >= 0 and result.time_s > 0
+    True
+    """
+    if controller_name not in CONTROLLERS:
+        raise InvalidInput(
+            f'unknown controller {controller_name!r}; choose one of {", ".join(CONTROLLERS)}')
+    params = follower_params(scenario)
+    controller = follow.make_controller(controller_name, params)
+    seed = scenario.seed if seed is None else int(seed)
+    start = np.asarray(scenario.start, float)
+    goal = np.asarray(scenario.goal, float)
+    limits = scenario.limits
+
+    plan_path = key_nodes = None
+    plan_length = None
+    if plan is None:
+        try:
+            plan = plan_on_known_map(scenario)
+        except PlanningError as err:
+            LOGGER.info('%s: no global plan: %s', scenario.name, err)
+            if controller_name in PLAN_FOLLOWERS:
+                return EpisodeResult(
+                    scenario=scenario.name, controller=controller_name, seed=seed, reached=False,
+                    collisions=0, time_s=0.0, path_length_m=0.0, min_clearance_m=math.nan,
+                    stuck_events=0, failure=f'no_path: {err}')
+    if plan is not None:
+        plan_path, key_nodes = exact_ends(plan.path, plan.key_nodes, start[:2], goal)
+        plan_length = float(plan.metrics.length_m)
+    if controller_name in PLAN_FOLLOWERS:
+        controller.set_path(plan_path, key_nodes)
+    else:
+        controller.set_path(np.vstack([start[:2], goal]), goal[None, :])
+
+    world = World(scenario.grid, scenario.robot, start, scenario.unknown_obstacles,
+                  scenario.moving_obstacles, scenario.scan, seed=seed)
+    trajectory, tracks, escapes = [], [], []
+    path_length = 0.0
+    min_clearance = world.clearance()
+    reached, failure = False, None
+    previous_status = None
+    max_steps = int(math.ceil(limits.time_limit_s / limits.dt - 1e-9))
+    steps = 0
+    for _ in range(max_steps):
+        scan = world.scan()
+        obs = follow.Observation(pose=world.pose.copy(), velocity=world.velocity.copy(),
+                                 obstacle_points=scan.points, tracked=world.tracked_obstacles(),
+                                 time=world.time)
+        command = controller.compute(obs)
+        if record:
+            trajectory.append(world.pose.copy())
+            tracks.append(world.obstacle_positions())
+        if command.status == 'stuck_escaping' and previous_status != 'stuck_escaping':
+            escapes.append(world.pose[:2].copy())
+        previous_status = command.status
+        if command.status == 'arrived' and \
+                np.hypot(*(world.pose[:2] - goal)) <= params.goal_tolerance + ARRIVAL_SLACK_M:
+            reached = True
+            break
+        if command.status in ('failed', 'no_path'):
+            failure = f'controller_failed: {command.reason or command.status}'
+            break
+        before = world.pose[:2].copy()
+        world.step(command.v, command.omega, limits.dt)
+        steps += 1
+        path_length += float(np.hypot(*(world.pose[:2] - before)))
+        min_clearance = min(min_clearance, world.clearance())
+        if world.contact_events >= limits.max_collisions:
+            failure = f'collisions: stopped after {world.contact_events} contact events'
+            break
+    else:
+        failure = f'time_limit: the goal was not reached within {limits.time_limit_s:g} s'
+    if record and steps == len(trajectory):
+        # the loop ended after a step (limits): record where that step ended
+        trajectory.append(world.pose.copy())
+        tracks.append(world.obstacle_positions())
+    k = len(scenario.moving_obstacles)
+    return EpisodeResult(
+        scenario=scenario.name, controller=controller_name, seed=seed, reached=reached,
+        collisions=world.contact_events, time_s=world.time, path_length_m=path_length,
+        min_clearance_m=min_clearance, stuck_events=int(getattr(controller, 'stuck_events', 0)),
+        moving_collisions=world.moving_contact_events,
+        failure=failure, plan_length_m=plan_length,
+        trajectory=np.array(trajectory).reshape(-1, 3) if record else None,
+        obstacle_tracks=np.array(tracks).reshape(len(tracks), k, 2) if record else None,
+        plan_path=plan_path if record else None, key_nodes=key_nodes if record else None,
+        escape_points=np.array(escapes).reshape(-1, 2))
+
+
+# -- batches -----------------------------------------------------------------------
+
+@dataclass
+class ControllerSummary:
+    """Side-by-side figures of one controller over a batch.
+
+    Attributes
+    ----------
+    controller : str
+    episodes : int
+    reached : int
+    success_rate : float
+        ``reached / episodes``.
+    collisions : int
+        Contact events over all episodes.
+    moving_collisions : int
+        Those that began with a moving obstacle overlapping the robot.
+    episodes_with_collisions : int
+    mean_time_s : float or None
+        Mean simulated time of the successful episodes [s].
+    path_length_over_optimal : float or None
+        Mean of driven length / optimal length (plan on the true static map)
+        over the successful episodes.
+    mean_min_clearance_m : float or None
+        Mean of the episodes' smallest clearance [m].
+    stuck_events : int
+    failures : list of tuple
+        ``(scenario name, reason)`` of every episode not reached.
+    """
+
+    controller: str
+    episodes: int = 0
+    reached: int = 0
+    success_rate: float = 0.0
+    collisions: int = 0
+    moving_collisions: int = 0
+    episodes_with_collisions: int = 0
+    mean_time_s: float = None
+    path_length_over_optimal: float = None
+    mean_min_clearance_m: float = None
+    stuck_events: int = 0
+    failures: list = field(default_factory=list)
+
+    def as_dict(self):
+        """JSON-ready form (numbers rounded)."""
+        out = dataclasses.asdict(self)
+        for key in ('success_rate', 'mean_time_s', 'path_length_over_optimal', 'mean_min_clearance_m'):
+            if out[key] is not None:
+                out[key] = round(float(out[key]), 4)
+        out['failures'] = [{'scenario': s, 'reason': r} for s, r in self.failures]
+        return out
+
+
+@dataclass
+class BatchResult:
+    """A batch: its parameters, per-controller summaries and every episode.
+
+    Attributes
+    ----------
+    scenarios : int
+    seed : int
+    controllers : dict of str to ControllerSummary
+    episodes : list of dict
+        :meth:`EpisodeResult.summary` of every episode plus
+        ``optimal_length_m``.
+    wall_time_s : float
+    """
+
+    scenarios: int
+    seed: int
+    controllers: dict
+    episodes: list
+    wall_time_s: float
+
+    def as_dict(self):
+        """JSON-ready form."""
+        return {
+            'scenarios': self.scenarios,
+            'seed': self.seed,
+            'wall_time_s': round(self.wall_time_s, 2),
+            'controllers': {name: s.as_dict() for name, s in self.controllers.items()},
+            'episodes': self.episodes,
+        }
+
+
+def batch_seeds(n, seed):
+    """The scenario seeds of a batch: ``n`` distinct non-negative ints from ``seed``."""
+    children = np.random.SeedSequence(int(seed)).spawn(int(n))
+    return [int(child.generate_state(1)[0]) for child in children]
+
+
+def run_scenario_set(scenario_seed, controllers, config=None):
+    """Generate one random scenario and run every controller on it.
+
+    Returns
+    -------
+    list of dict
+        One :meth:`EpisodeResult.summary` per controller, each with
+        ``optimal_length_m``.
+    """
+    scenario = random_scenario(scenario_seed, config)
+    optimal = optimal_length(scenario)
+    try:
+        plan = plan_on_known_map(scenario)
+    except PlanningError:
+        plan = None
+    rows = []
+    for name in controllers:
+        result = run_episode(scenario, name, record=False, plan=plan)
+        row = result.summary()
+        row['optimal_length_m'] = None if optimal is None else round(optimal, 3)
+        rows.append(row)
+    return rows
+
+
+def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, workers=1):
+    """Run controllers side by side on ``n`` generated scenarios.
+
+    Parameters
+    ----------
+    n : int
+        Number of scenarios, >= 1.
+    seed : int
+        Batch seed; scenario ``i`` uses ``batch_seeds(n, seed)[i]``.
+    controllers : sequence of str
+        Names from :data:`CONTROLLERS`.
+    config : RandomScenarioConfig, optional
+    progress : callable, optional
+        ``progress(done, total)`` after each scenario (all controllers).
+    workers : int
+        Worker processes (1: run in this process). Results do not depend on
+        it.
+
+    Returns
+    -------
+    BatchResult
+
+    Raises
+    ------
+    InvalidInput
+        ``n < 1``, unknown controller or bad worker count.
+    """
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise InvalidInput(f'the batch size must be a positive integer, got {n!r}')
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise InvalidInput(f'workers must be a positive integer, got {workers!r}')
+    controllers = tuple(controllers)
+    for name in controllers:
+        if name not in CONTROLLERS:
+            raise InvalidInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
+    config = config or RandomScenarioConfig()
+    seeds = batch_seeds(n, seed)
+    t0 = time.perf_counter()
+    per_scenario = [None] * n
+    if workers == 1:
+        for i, s in enumerate(seeds):
+            per_scenario[i] = run_scenario_set(s, controllers, config)
+            if progress is not None:
+                progress(i + 1, n)
+    else:
+        with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+            futures = {pool.submit(run_scenario_set, s, controllers, config): i
+                       for i, s in enumerate(seeds)}
+            for done, future in enumerate(concurrent.futures.as_completed(futures), start=1):
+                per_scenario[futures[future]] = future.result()
+                if progress is not None:
+                    progress(done, n)
+    episodes = [row for rows in per_scenario for row in rows]
+    summaries = {name: summarise(name, [e for e in episodes if e['controller'] == name])
+                 for name in controllers}
+    return BatchResult(scenarios=n, seed=int(seed), controllers=summaries, episodes=episodes,
+                       wall_time_s=time.perf_counter() - t0)
+
+
+def summarise(controller, rows):
+    """A :class:`ControllerSummary` from episode summary rows of one controller."""
+    out = ControllerSummary(controller=controller, episodes=len(rows))
+    if not rows:
+        return out
+    ok = [r for r in rows if r['reached']]
+    out.reached = len(ok)
+    out.success_rate = len(ok) / len(rows)
+    out.collisions = sum(r['collisions'] for r in rows)
+    out.moving_collisions = sum(r.get('moving_collisions', 0) for r in rows)
+    out.episodes_with_collisions = sum(1 for r in rows if r['collisions'] > 0)
+    out.stuck_events = sum(r['stuck_events'] for r in rows)
+    if ok:
+        out.mean_time_s = float(np.mean([r['time_s'] for r in ok]))
+        ratios = [r['path_length_m'] / r['optimal_length_m'] for r in ok
+                  if r.get('optimal_length_m')]
+        out.path_length_over_optimal = float(np.mean(ratios)) if ratios else None
+    clearances = [r['min_clearance_m'] for r in rows if r['min_clearance_m'] is not None
+                  and math.isfinite(r['min_clearance_m'])]
+    out.mean_min_clearance_m = float(np.mean(clearances)) if clearances else None
+    out.failures = [(r['scenario'], r['failure']) for r in rows if not r['reached']]
+    return out

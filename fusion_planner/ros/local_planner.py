@@ -1,0 +1,689 @@
+"""ROS 2 node wrapping the fusion local planner (paper section 3.3).
+
+The node is an adapter around :func:`fusion_planner.core.follow.make_controller`:
+it turns the global plan, odometry, laser scans and tracked moving obstacles
+into a :class:`~fusion_planner.core.follow.Observation`, calls the
+controller at a fixed rate on the node clock (sim time under
+``use_sim_time``), and publishes the command.
+
+Topics (relative names, so a namespace or a remap applies):
+
+- ``plan`` (nav_msgs/Path, reliable, transient_local, depth 1) in: the global
+  plan. Its key nodes become the APF sub-goals: the plan arrives smoothed,
+  so they are recovered as the corners its arcs rounded
+  (:func:`key_nodes_of`). An *empty* path means "no
+  plan": the robot stops. The same plan again (a latched republish) keeps
+  the controller's state.
+- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``, sensor-data QoS)
+  in: pose and measured velocity. The pose is moved ahead along the measured
+  velocity from its stamp to the control step (:func:`pose_at`), which
+  compensates the delay of a message that arrived a step late.
+- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
+  ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
+  points, placed in the map with the odometry pose of the scan's stamp.
+- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in:
+  tracked moving obstacles; velocities are estimated from successive
+  positions (:class:`~fusion_planner.ros.conversions.ObstacleTracker`).
+- ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
+  ``use_stamped_twist``) out, at ``control_rate`` on the node clock.
+- ``local_plan`` (nav_msgs/Path) out: the controller's short field rollout.
+- ``diagnostics`` out: controller status, arrival, failure with its reason,
+  stuck events, stale inputs, step timing.
+
+Safety policy (DESIGN.md, Errors): the command is exactly zero with no plan,
+on arrival, after a controller failure, when odometry is older than
+``odom_timeout``, when the plan's publisher has been gone for longer than
+``plan_timeout``, when the node clock jumps backwards (until fresh data
+arrives), after an internal error, and - with ``on_stale_scan: stop`` - when
+the last scan is older than ``scan_timeout`` (``slow`` caps the speed at
+``stale_scan_speed`` instead and keeps steering with the last scan). Every
+refused message is one rate-limited log line and a diagnostics entry; the
+node never dies on a message.
+"""
+
+import collections
+import math
+import threading
+import time
+from dataclasses import field as dataclass_field
+from dataclasses import fields, make_dataclass
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import Twist, TwistStamped
+from nav_msgs.msg import Odometry, Path
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import MarkerArray
+
+from fusion_planner.core import apf, follow
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.world import integrate_unicycle
+from fusion_planner.ros import conversions as conv
+from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+
+NODE_NAME = 'local_planner'
+
+#: QoS of ``plan``: the global planner's latched profile.
+PLAN_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Queue depth of ``cmd_vel`` (reliable) [messages].
+CMD_VEL_DEPTH = 10
+#: Queue depth of ``local_plan`` and ``obstacles`` [messages].
+DEFAULT_DEPTH = 10
+#: Prefix of the parameters that fill :class:`~fusion_planner.core.apf.ApfParams`.
+APF_PREFIX = 'apf_'
+#: A node-clock step backwards larger than this [s] is a clock reset.
+CLOCK_JUMP_TOLERANCE_S = 1e-3
+#: Default heading change [rad] above which a plan vertex turns (key nodes).
+DEFAULT_KEY_NODE_MIN_TURN_RAD = 0.01
+#: Sine of the angle under which two segments count as parallel [1].
+PARALLEL_SINE = 1e-6
+#: Odometry messages remembered to place scans at their own time [1].
+ODOM_HISTORY = 64
+#: Statuses after which the command is exactly zero.
+STOPPED_STATUSES = ('arrived', 'failed', 'no_path')
+
+#: The node's own parameters: ``(name, default, description, range, read_only, choices)``.
+NODE_PARAMETERS = (
+    ('frame_id', 'map', 'frame of the plan, odometry and obstacles', None, True, ()),
+    ('robot_frame_id', 'base_link', 'robot frame: frame of the scan and of a TwistStamped command',
+     None, True, ()),
+    ('controller', 'fusion',
+     "local controller: 'fusion' (A* key nodes + improved APF, the paper's method), "
+     "'apf', 'classic-apf' or 'astar-track'", None, False, follow.CONTROLLER_NAMES),
+    ('control_rate', 20.0,
+     'rate of cmd_vel on the node clock; the follower period is its inverse [Hz]',
+     float_range(1.0, 200.0), False, ()),
+    ('use_stamped_twist', False, 'publish geometry_msgs/TwistStamped instead of Twist on cmd_vel',
+     None, True, ()),
+    ('odom_timeout', 0.5, 'older odometry stops the robot [s]', float_range(0.01, 60.0), False, ()),
+    ('scan_timeout', 0.5, 'an older scan is stale (see on_stale_scan) [s]',
+     float_range(0.01, 60.0), False, ()),
+    ('on_stale_scan', 'stop',
+     "with a stale scan: 'stop' the robot or 'slow' it to stale_scan_speed",
+     None, False, ('stop', 'slow')),
+    ('stale_scan_speed', 0.1, "speed cap with a stale scan and on_stale_scan 'slow' [m/s]",
+     float_range(0.0, 10.0), False, ()),
+    ('key_node_min_turn', DEFAULT_KEY_NODE_MIN_TURN_RAD,
+     'a plan vertex turning by more than this belongs to a rounded corner; each corner '
+     'becomes one key node (APF sub-goal) [rad]', float_range(0.0, 1.0), False, ()),
+    ('plan_timeout', 1.0, 'drop the plan (stop) when no publisher of plan has been seen for this '
+     'long; 0 disables [s]', float_range(0.0, 600.0), False, ()),
+    ('obstacle_timeout', conv.DEFAULT_OBSTACLE_TIMEOUT_S,
+     'forget a tracked obstacle not seen for this long [s]', float_range(0.01, 60.0), True, ()),
+    ('diagnostics_period', 1.0,
+     'period of the diagnostics heartbeat on the node clock; 0: events only [s]',
+     float_range(0.0, 60.0), True, ()),
+)
+
+#: Description and range of each :class:`~fusion_planner.core.follow.FollowerParams`
+#: field declared as a parameter of the same name. ``apf`` (below) and
+#: ``control_period`` (``1 / control_rate``) are not declared.
+FOLLOWER_PARAMETERS = {
+    'max_speed': ('largest forward speed [m/s]', float_range(0.01, 10.0)),
+    'max_accel': ('largest change of speed [m/s^2]', float_range(0.01, 20.0)),
+    'max_omega': ('largest turn rate [rad/s]', float_range(0.01, 20.0)),
+    'max_alpha': ('largest change of turn rate [rad/s^2]', float_range(0.01, 100.0)),
+    'goal_tolerance': ("arrival radius around the plan's end [m]", float_range(0.01, 10.0)),
+    'lookahead': ('field goal at most this far ahead of the robot; pure-pursuit lookahead [m]',
+                  float_range(0.05, 20.0)),
+    'switch_radius': ('fusion: a key node closer than this is passed to the next one [m]',
+                      float_range(0.01, 20.0)),
+    'stuck_window': ('window of the local-minimum progress test [s]', float_range(0.1, 120.0)),
+    'stuck_progress': ('net progress needed within stuck_window [m]', float_range(0.001, 10.0)),
+    'escape_time_limit': ('longest local-minimum escape before failing [s]',
+                          float_range(0.1, 3600.0)),
+    'robot_radius': ('robot radius; obstacle distances are from its boundary [m]',
+                     float_range(0.0, 10.0)),
+    'prediction_horizon': ('how far ahead tracked obstacles are predicted; 0: current positions '
+                           'only [s]', float_range(0.0, 30.0)),
+    'heading_gain': ('turn rate per radian of heading error [1/s]', float_range(0.01, 50.0)),
+    'approach_gain': ('speed cap per metre of distance to the goal [1/s]', float_range(0.01, 50.0)),
+    'safety_distance': ('clearance kept straight ahead and required of a free line of sight [m]',
+                        float_range(0.0, 10.0)),
+    'sight_clearance': ('clearance the straight line to a later key node must keep from every '
+                        'obstacle point for that node to count as visible [m]',
+                        float_range(0.0, 10.0)),
+    'wall_distance': ('clearance kept while following a boundary to escape [m]',
+                      float_range(0.01, 10.0)),
+    'point_spacing': ('obstacle points are thinned to one per square of this edge [m]',
+                      float_range(0.01, 5.0)),
+    'visibility_range': ('later key nodes within this distance are tested for a free line of '
+                         'sight [m]', float_range(0.01, 100.0)),
+    'corridor_margin': ('static points farther than robot_radius + this from the way ahead do not '
+                        'repel (doors, corridors) [m]', float_range(0.001, 10.0)),
+}
+
+#: Description and range of each :class:`~fusion_planner.core.apf.ApfParams`
+#: field, declared as ``apf_<field>``; its ``robot_radius`` is ``robot_radius``.
+APF_PARAMETERS = {
+    'k_att': ('attraction gain, eqs. (9)-(10) [force/m]', float_range(1e-6, 1e6)),
+    'k_rep': ('repulsion gain k, eqs. (11)-(12), (15)-(16)', float_range(0.0, 1e6)),
+    'rho0': ('influence distance rho0 of the repulsion [m]', float_range(0.01, 100.0)),
+    'n': ('goal-distance exponent n, eqs. (15)-(16) [1]', float_range(0.01, 10.0)),
+    'mu': ('velocity repulsion gain mu, eq. (17) [force s/m]', float_range(0.0, 1e6)),
+    'step_alpha': ('adaptive step factor alpha closer than d_min, eq. (18) [s/m^2]',
+                   float_range(1e-6, 1e3)),
+    'step_beta': ('adaptive step factor beta within rho, eq. (18) [s/m^2]', float_range(1e-6, 1e3)),
+    'l0': ('base step l0, eq. (18) [m]', float_range(1e-3, 10.0)),
+    'd_min': ('minimum robot-obstacle distance d_min, eq. (18) [m]', float_range(1e-3, 10.0)),
+    'rho': ('range within which obstacles shorten the step, eq. (18); > apf_d_min [m]',
+            float_range(1e-3, 100.0)),
+}
+
+#: Range of a core field missing from the tables above (kept declarable).
+UNDOCUMENTED_RANGE = float_range(0.0, 1e6)
+#: Core fields never declared as parameters.
+_FOLLOWER_SKIPPED = ('apf', 'control_period')
+_APF_SKIPPED = ('robot_radius',)
+
+
+def _core_specs(core_type, table, prefix, skipped):
+    """ParameterSpecs of the fields of a core dataclass (defaults from the core)."""
+    defaults = core_type()
+    specs = []
+    for f in fields(core_type):
+        if f.name in skipped:
+            continue
+        description, value_range = table.get(
+            f.name, (f'{core_type.__name__}.{f.name} (see its documentation)', UNDOCUMENTED_RANGE))
+        specs.append(ParameterSpec(prefix + f.name, float(getattr(defaults, f.name)),
+                                   description, value_range))
+    return specs
+
+
+#: Every parameter of the node; config/params.yaml lists the same names.
+PARAMETER_SPECS = tuple(
+    [ParameterSpec(name, default, description, value_range, read_only, choices)
+     for name, default, description, value_range, read_only, choices in NODE_PARAMETERS]
+    + _core_specs(follow.FollowerParams, FOLLOWER_PARAMETERS, '', _FOLLOWER_SKIPPED)
+    + _core_specs(apf.ApfParams, APF_PARAMETERS, APF_PREFIX, _APF_SKIPPED))
+
+
+def _check(params):
+    """``__post_init__`` of :class:`LocalPlannerParams`: the core validates the values."""
+    if params.controller not in follow.CONTROLLER_NAMES:
+        raise InvalidInput(f'controller must be one of {follow.CONTROLLER_NAMES}, '
+                           f'got {params.controller!r}')
+    params.follower_params()
+
+
+def _follower_params(params):
+    """The :class:`~fusion_planner.core.follow.FollowerParams` these values describe.
+
+    The control period is ``1 / control_rate``; the APF robot radius is
+    ``robot_radius``.
+    """
+    apf_values = {f.name: getattr(params, APF_PREFIX + f.name) for f in fields(apf.ApfParams)
+                  if f.name not in _APF_SKIPPED}
+    follower_values = {f.name: getattr(params, f.name) for f in fields(follow.FollowerParams)
+                       if f.name not in _FOLLOWER_SKIPPED}
+    return follow.FollowerParams(apf=apf.ApfParams(**apf_values),
+                                 control_period=1.0 / params.control_rate, **follower_values)
+
+
+#: Tunables of the local planner node: one frozen field per entry of
+#: :data:`PARAMETER_SPECS` (the node's own, then every FollowerParams field,
+#: then every ApfParams field as ``apf_<name>``), built from the core
+#: dataclasses so the node follows them. ``follower_params()`` gives the
+#: FollowerParams; construction raises InvalidInput on values the core refuses.
+LocalPlannerParams = make_dataclass(
+    'LocalPlannerParams',
+    [(spec.name, type(spec.default), dataclass_field(default=spec.default))
+     for spec in PARAMETER_SPECS],
+    frozen=True,
+    namespace={'__post_init__': _check, 'follower_params': _follower_params,
+               '__module__': __name__})
+
+
+def key_nodes_of(path, min_turn=DEFAULT_KEY_NODE_MIN_TURN_RAD):
+    """Key nodes of a global plan: its ends and the corners its smoothing rounded.
+
+    The global planner removes redundant nodes and rounds each remaining
+    corner with an arc (paper section 1.3.3); the key nodes, the APF
+    sub-goals of the fusion (section 3.3), are those corners. Each run of
+    consecutive vertices that turn by more than ``min_turn`` (an arc, or a
+    single vertex of an unsmoothed path) gives one key node: the
+    intersection of the straight segments entering and leaving the run,
+    i.e. the corner the arc replaced.
+
+    Parameters
+    ----------
+    path : ndarray, float64, shape (N, 2)
+        ``(x, y)`` [m], map frame, finite, N >= 1.
+    min_turn : float
+        Heading change [rad] above which a vertex turns, >= 0; smaller
+        changes (sampling noise on a straight run) are ignored.
+
+    Returns
+    -------
+    ndarray, float64, shape (K, 2)
+        The first point, one corner per turning run, the last point (the
+        goal). A corner is replaced by the run's middle vertex when the
+        two segments are (anti)parallel or the intersection lies farther
+        from the run than the run is long (a turn close to 180 degrees).
+
+    Notes
+    -----
+    Repeated points are dropped first. Vectorised headings; one pass over
+    the runs (at most N).
+
+    Examples
+    --------
+    A straight run, a rounded right-angle corner at (2, 0), a straight run:
+
+    >>> arc = [[2.0 - 0.3 + 0.3 * np.sin(a), 0.3 - 0.3 * np.cos(a)]
+    ...        for a in np.linspace(0.0, np.pi / 2, 5)]
+    >>> path = np.array([[0.0, 0.0], [1.0, 0.0]] + arc + [[2.0, 1.0], [2.0, 2.0]])
+    >>> key_nodes_of(path).round(6).tolist()
+    [[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]]
+    """
+    keep = np.ones(len(path), dtype=bool)
+    keep[1:] = np.any(np.diff(path, axis=0) != 0.0, axis=1)
+    pts = path[keep]
+    n = len(pts)
+    if n <= 2:
+        return pts if n == 2 or len(path) == 1 else np.vstack([pts, pts])
+    seg = np.diff(pts, axis=0)                                   # (n - 1, 2)
+    heading = np.arctan2(seg[:, 1], seg[:, 0])
+    turn = (np.diff(heading) + math.pi) % (2.0 * math.pi) - math.pi  # at vertices 1..n-2
+    turning = np.flatnonzero(np.abs(turn) > min_turn) + 1
+    nodes = [pts[0]]
+    if len(turning):
+        runs = np.split(turning, np.flatnonzero(np.diff(turning) > 1) + 1)
+        for run in runs:  # bounded: at most n - 2 runs
+            nodes.append(_corner(pts, run[0], run[-1]))
+    nodes.append(pts[-1])
+    return np.array(nodes)
+
+
+def _corner(pts, first, last):
+    """Corner of the turning run ``pts[first..last]`` (see :func:`key_nodes_of`)."""
+    a, da = pts[first], pts[first] - pts[first - 1]      # entering segment
+    b, db = pts[last], pts[last + 1] - pts[last]         # leaving segment
+    middle = pts[(first + last) // 2]
+    cross = da[0] * db[1] - da[1] * db[0]
+    scale = math.hypot(*da) * math.hypot(*db)
+    if abs(cross) <= PARALLEL_SINE * scale:
+        return middle.copy()
+    t = ((b[0] - a[0]) * db[1] - (b[1] - a[1]) * db[0]) / cross
+    corner = a + t * da
+    run_length = float(np.sum(np.hypot(*np.diff(pts[first:last + 1], axis=0).T))) \
+        + math.hypot(*da) + math.hypot(*db)
+    if math.hypot(*(corner - middle)) > run_length:
+        return middle.copy()
+    return corner
+
+
+def pose_at(history, t, max_gap):
+    """The robot pose at time ``t`` from timed odometry.
+
+    Parameters
+    ----------
+    history : sequence of tuple
+        ``(stamp [s], pose (3,) x, y, yaw [m, m, rad], velocity (2,) v, omega
+        [m/s, rad/s])``, oldest first, non-empty.
+    t : float
+        Time [s] on the odometry's clock.
+    max_gap : float
+        Longest time [s] the pose is predicted ahead of a message.
+
+    Returns
+    -------
+    ndarray, float64, shape (3,)
+        The pose of the latest message stamped at or before ``t`` (the oldest
+        one if all are later), moved ahead to ``t`` along its measured
+        velocity (unicycle) when ``0 < t - stamp <= max_gap``.
+
+    Notes
+    -----
+    This compensates the delay between a control step and the odometry it
+    uses (messages of another process or thread may arrive a step late), and
+    places a scan with the pose of its own time rather than the latest one.
+
+    Examples
+    --------
+    >>> pose_at([(1.0, np.zeros(3), np.array([0.5, 0.0]))], 1.2, 0.5).round(3).tolist()
+    [0.1, 0.0, 0.0]
+    """
+    chosen = history[0]
+    for entry in reversed(history):
+        if entry[0] <= t:
+            chosen = entry
+            break
+    stamp, pose, velocity = chosen
+    gap = t - stamp
+    if 0.0 < gap <= max_gap:
+        return integrate_unicycle(pose, velocity[0], velocity[1], gap)
+    return np.array(pose, dtype=float)
+
+
+class LocalPlannerNode(Node):
+    """The local planner node (see the module docstring for its interface).
+
+    Parameters
+    ----------
+    node_name : str
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``namespace``,
+        ``parameter_overrides``, ``cli_args`` ...).
+
+    Raises
+    ------
+    InvalidInput
+        If the start-up parameters are out of range or inconsistent.
+
+    Notes
+    -----
+    Callbacks run in the node's default (mutually exclusive) callback group;
+    a lock also guards the state against parameter changes made from another
+    thread.
+    """
+
+    def __init__(self, node_name=NODE_NAME, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self._lock = threading.RLock()
+        self._params = ParameterHandler(self, LocalPlannerParams, PARAMETER_SPECS,
+                                        on_change=self._on_parameters_changed)
+        params = self._params.current
+        self._frame_id = params.frame_id
+        self._robot_frame_id = params.robot_frame_id
+        self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        self._controller = follow.make_controller(params.controller, params.follower_params())
+        self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
+        self._plan = None          # (N, 2) path being followed [m]
+        self._odom = None          # latest Odometry as (stamp [s], pose (3,), velocity (2,))
+        self._odom_received = None  # node-clock time it arrived [s]
+        self._odom_history = collections.deque(maxlen=ODOM_HISTORY)  # (stamp, pose, velocity)
+        self._scan = None          # (points (M, 2), receive time [s])
+        self._last_tick = None     # node-clock time of the last control step [s]
+        self._plan_orphaned_since = None  # node-clock time the plan's publisher vanished [s]
+        self._status = None        # last reported status
+        self._level, self._message = WARN, 'waiting for a plan'  # last reported status line
+        self._stuck_events = 0
+        self._step_ms_max = 0.0
+        self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
+
+        guard = self._diagnostics.guard
+        twist_type = TwistStamped if params.use_stamped_twist else Twist
+        self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', CMD_VEL_DEPTH)
+        self._local_plan_pub = self.create_publisher(Path, 'local_plan', DEFAULT_DEPTH)
+        self._plan_sub = self.create_subscription(Path, 'plan', guard('plan', self._on_plan),
+                                                  PLAN_QOS)
+        self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
+                                 qos_profile_sensor_data)
+        self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
+                                 qos_profile_sensor_data)
+        self.create_subscription(MarkerArray, 'obstacles', guard('obstacles', self._on_obstacles),
+                                 DEFAULT_DEPTH)
+        self._timer = self.create_timer(1.0 / params.control_rate,
+                                        guard('control', self._on_timer, on_error=self._on_fault))
+        self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
+                                 stuck_events=0, controller=params.controller)
+
+    # -- inputs ---------------------------------------------------------------
+
+    def _on_plan(self, msg):
+        """Take a new global plan; an empty one means stop."""
+        with self._lock:
+            if len(msg.poses) == 0:
+                conv.check_frame(msg.header.frame_id, self._frame_id, 'plan')
+                if self._plan is not None:
+                    self.get_logger().info('empty plan received: stopping')
+                self._drop_plan()
+                return
+            path = conv.path_from_msg(msg, self._frame_id, 'plan')
+            if self._plan is not None and self._plan.shape == path.shape \
+                    and np.array_equal(self._plan, path):
+                return  # the same plan again (a latched republish): keep the state
+            min_turn = self._params.current.key_node_min_turn
+            self._controller.set_path(path, key_nodes_of(path, min_turn))
+            self._plan = path
+            self._plan_orphaned_since = None
+            self._status = None
+            self.get_logger().info(
+                f'new plan of {len(path)} points to ({path[-1, 0]:.2f}, {path[-1, 1]:.2f})')
+
+    def _on_odometry(self, msg):
+        pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
+        velocity = conv.odometry_to_velocity(msg, 'odometry')
+        stamp = conv.stamp_to_seconds(msg.header.stamp)
+        with self._lock:
+            self._odom = (stamp, np.array(pose), np.array(velocity))
+            self._odom_received = self._now_s()
+            self._odom_history.append(self._odom)
+
+    def _on_scan(self, msg):
+        with self._lock:
+            if self._odom is None:
+                return  # cannot place the beams before the first pose
+            stamp = conv.stamp_to_seconds(msg.header.stamp)
+            if stamp > 0:
+                pose = pose_at(self._odom_history, stamp, self._params.current.odom_timeout)
+            else:  # an unstamped scan: take it as current
+                pose = self._odom[1]
+            points = conv.scan_to_points(msg, tuple(pose), self._robot_frame_id, 'scan')
+            self._scan = (points, self._now_s())
+
+    def _on_obstacles(self, msg):
+        with self._lock:
+            _, rejected = self._tracker.update(msg, self._now_s())
+        if rejected:
+            self._diagnostics.reject(
+                'obstacles',
+                InvalidInput(f'{len(rejected)} marker(s) refused, first: {rejected[0]}'))
+
+    def _on_parameters_changed(self, old, new):
+        """Apply an accepted run-time parameter change."""
+        with self._lock:
+            if new.controller != old.controller or new.key_node_min_turn != old.key_node_min_turn:
+                self._controller = follow.make_controller(new.controller, new.follower_params())
+                if self._plan is not None:
+                    self._controller.set_path(self._plan,
+                                              key_nodes_of(self._plan, new.key_node_min_turn))
+                self._status = None
+            else:
+                self._controller.params = new.follower_params()
+            if new.control_rate != old.control_rate:
+                self.destroy_timer(self._timer)
+                self._timer = self.create_timer(
+                    1.0 / new.control_rate,
+                    self._diagnostics.guard('control', self._on_timer, on_error=self._on_fault))
+        self.get_logger().info(
+            'parameters changed: ' + ', '.join(
+                f'{f.name}={getattr(new, f.name)!r}' for f in fields(new)
+                if getattr(new, f.name) != getattr(old, f.name)))
+
+    # -- control loop ---------------------------------------------------------
+
+    def _on_timer(self):
+        """One control step: check inputs, run the controller, publish."""
+        started = time.perf_counter()
+        with self._lock:
+            now = self._now_s()
+            params = self._params.current
+            if self._last_tick is not None and now < self._last_tick - CLOCK_JUMP_TOLERANCE_S:
+                self._on_clock_reset(now)
+            self._last_tick = now
+            stop_reason = self._stop_reason(now, params)
+            if stop_reason is not None:
+                status, message = stop_reason
+                self._publish_command(0.0, 0.0)
+                self._report(status, message, WARN if status != 'no_path' else OK)
+                return
+            pose = pose_at((self._odom,), now, params.odom_timeout)
+            velocity = self._odom[2]
+            scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
+            points = np.zeros((0, 2)) if self._scan is None else self._scan[0]
+            obs = follow.Observation(pose=pose, velocity=velocity, obstacle_points=points,
+                                     tracked=self._tracker.obstacles(now), time=now)
+            command = self._controller.compute(obs)
+            v, omega = command.v, command.omega
+            if command.status in STOPPED_STATUSES:
+                v = omega = 0.0
+            elif scan_stale:
+                v = min(v, params.stale_scan_speed)
+            self._publish_command(v, omega)
+            if command.local_plan is not None and len(command.local_plan) \
+                    and self._local_plan_pub.get_subscription_count() > 0:
+                self._local_plan_pub.publish(
+                    conv.path_to_msg(command.local_plan, self._frame_id, self._stamp()))
+            step_ms = (time.perf_counter() - started) * 1e3
+            self._step_ms_max = max(self._step_ms_max, step_ms)
+            self._report_command(command, pose, step_ms, scan_stale)
+            self._report_timing(now, step_ms, params.diagnostics_period)
+
+    def _stop_reason(self, now, params):
+        """``(status, sentence)`` when the robot must stand still, else None."""
+        if self._plan is not None and params.plan_timeout > 0:
+            if self._plan_sub.get_publisher_count() > 0:
+                self._plan_orphaned_since = None
+            elif self._plan_orphaned_since is None:
+                self._plan_orphaned_since = now
+            elif now - self._plan_orphaned_since > params.plan_timeout:
+                self.get_logger().warning(
+                    f'the plan publisher has been gone for more than {params.plan_timeout:g} s: '
+                    'dropping the plan')
+                self._drop_plan()
+        if self._plan is None:
+            return 'no_path', 'no plan: standing still'
+        if self._odom is None:
+            return 'stale_odom', 'no odometry received: standing still'
+        age = now - self._odom_received
+        if age > params.odom_timeout:
+            return 'stale_odom', (f'odometry is {age:.2f} s old '
+                                  f'(odom_timeout {params.odom_timeout:g} s)')
+        if params.on_stale_scan == 'stop':
+            if self._scan is None:
+                return 'stale_scan', 'no scan received: standing still'
+            age = now - self._scan[1]
+            if age > params.scan_timeout:
+                return 'stale_scan', (f'scan is {age:.2f} s old '
+                                      f'(scan_timeout {params.scan_timeout:g} s)')
+        return None
+
+    def _on_clock_reset(self, now):
+        """The node clock went backwards (a simulation reset): forget timed inputs."""
+        self.get_logger().warning(
+            f'clock jumped back from {self._last_tick:.3f} s to {now:.3f} s: '
+            'waiting for fresh data')
+        self._odom = None
+        self._odom_history.clear()
+        self._scan = None
+        self._tracker.clear()
+        self._plan_orphaned_since = None
+
+    def _on_fault(self):
+        """After an internal error in a control step: stop the robot."""
+        try:
+            self._publish_command(0.0, 0.0)
+        except Exception as err:  # noqa: BLE001 - last line of defence, never raise
+            self.get_logger().error(f'could not publish the stop command: {err}')
+
+    def _drop_plan(self):
+        self._plan = None
+        self._plan_orphaned_since = None
+        self._controller.reset()
+        self._stuck_events = 0
+
+    # -- outputs --------------------------------------------------------------
+
+    def _publish_command(self, v, omega):
+        if self._params.current.use_stamped_twist:
+            msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, self._stamp())
+        else:
+            msg = conv.velocity_to_twist(v, omega)
+        self._cmd_pub.publish(msg)
+
+    def _report_command(self, command, pose, step_ms, scan_stale):
+        """Diagnostics on a status change or a new stuck event."""
+        stuck = int(getattr(self._controller, 'stuck_events', 0))
+        if stuck > self._stuck_events:
+            self._stuck_events = stuck
+            self.get_logger().info(
+                f'local minimum detected at ({pose[0]:.2f}, {pose[1]:.2f}) '
+                f'(stuck event {stuck}): escaping')
+            self._status = None  # report it below
+        goal = self._plan[-1]
+        distance = float(math.hypot(goal[0] - pose[0], goal[1] - pose[1]))
+        status = command.status
+        if status == 'moving' and scan_stale:
+            status = 'slow_stale_scan'
+        if status == self._status:
+            return
+        values = dict(status=status, arrived=status == 'arrived', stuck_events=stuck,
+                      controller=self._params.current.controller,
+                      distance_to_goal_m=distance, step_ms=step_ms, step_ms_max=self._step_ms_max)
+        if status == 'arrived':
+            self.get_logger().info(f'arrived at ({pose[0]:.2f}, {pose[1]:.2f}), '
+                                   f'{distance:.3f} m from the goal')
+            self._diagnostics.succeeded('arrived at the goal', last_error='', **values)
+            self._level, self._message = OK, 'arrived at the goal'
+        elif status == 'failed':
+            self.get_logger().error(f'local planner failed: {command.reason}')
+            self._update(ERROR, f'failed: {command.reason}', last_outcome='failed',
+                         last_error=command.reason, **values)
+        elif status == 'slow_stale_scan':
+            self._update(WARN, 'scan is stale: slowing down', **values)
+        else:
+            self._update(OK if status == 'moving' else WARN, status, **values)
+        self._status = status
+
+    def _report(self, status, message, level):
+        """Diagnostics (and a log line for a stop) once per status change."""
+        if status == self._status:
+            return
+        if status != 'no_path':
+            self.get_logger().warning(f'stopping: {message}')
+        self._update(level, message, status=status, arrived=False)
+        self._status = status
+
+    def _report_timing(self, now, step_ms, period):
+        """Mean and largest control-step time on diagnostics, once per ``period`` [s]."""
+        timing = self._timing
+        timing[0] += step_ms
+        timing[1] += 1
+        if timing[2] is None or now < timing[2]:
+            timing[2] = now
+        if period > 0 and now - timing[2] >= period:
+            self._update(self._level, self._message, step_ms=step_ms,
+                         step_ms_mean=timing[0] / timing[1], step_ms_max=self._step_ms_max)
+            self._timing = [0.0, 0, now]
+
+    def _update(self, level, message, **values):
+        """Publish a status on diagnostics and remember its level and message."""
+        self._level, self._message = level, message
+        self._diagnostics.update(level, message, **values)
+
+    def _now_s(self):
+        return self.get_clock().now().nanoseconds / conv.NS_PER_S
+
+    def _stamp(self):
+        return self.get_clock().now().to_msg()
+
+
+def main(args=None):
+    """Run the local planner node until Ctrl-C or shutdown; returns the exit code."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = LocalPlannerNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except InvalidInput as err:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {err}')
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,521 @@
+"""ROS 2 node running the headless closed-loop world of a scenario file.
+
+The node is an adapter around :class:`fusion_planner.core.world.World`: it
+loads a scenario (:func:`fusion_planner.core.scenario.load_scenario`),
+integrates the latest velocity command at ``rate`` steps per simulated
+second, and publishes what the robot and the planners see. It is the clock
+source of the run: the simulated time goes out on ``clock``, and the other
+nodes follow it with ``use_sim_time``. ``real_time_factor`` sets how many
+simulated seconds pass per wall second (the step timer runs on the steady
+clock, whatever ``use_sim_time`` says); it is an upper bound:
+
+- with ``sync_with_controller`` (default), once velocity commands flow a
+  step waits while the last command is older than ``max_command_lag`` of
+  simulated time, so a controller starved of CPU is not outrun (``0`` is
+  lockstep: one step per command; the demo and tests use it, with the
+  controller's rate equal to ``rate``). A controller silent for
+  :data:`COMMAND_WAIT_LIMIT_S` of wall time is taken for gone: the world runs
+  on and the robot stops after ``cmd_timeout``;
+- with ``start_paused`` the world stays at t = 0 (sensors and clock still
+  published) until the first plan appears, so moving obstacles do not
+  wander off before the robot can start and every run starts alike.
+
+Topics (relative names, so a namespace or a remap applies):
+
+- ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local) out, once:
+  the **known** map, without the scenario's unknown obstacles.
+- ``odom`` (nav_msgs/Odometry, sensor-data QoS) out, every step: the true
+  pose in ``frame_id`` (child ``robot_frame_id``) and the applied velocity.
+- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame
+  ``robot_frame_id``) out at ``scan_rate``: the world's ray-cast scan
+  (REP-117: ``+inf`` no return, ``-inf`` too close).
+- ``obstacles`` (visualization_msgs/MarkerArray) out with each scan: one
+  id-stable cylinder per moving obstacle, ``scale.x`` = diameter.
+- ``clock`` (rosgraph_msgs/Clock) out, every step, after the sensors. The
+  name is relative: under a namespace it is ``<ns>/clock``, and the nodes
+  that run on it need ``-r /clock:=clock`` (rclpy's time source listens on
+  ``/clock``), so two simulated robots keep two clocks apart.
+- ``cmd_vel`` (geometry_msgs/Twist, reliable) in: applied until a newer
+  one arrives or it is older than ``cmd_timeout`` (then the robot stops). A
+  command with a NaN, infinite or huge value is refused and the robot stops.
+- ``goal_pose`` (geometry_msgs/PoseStamped) out with ``publish_goal``: the
+  scenario's goal, once a subscriber (the global planner) is matched,
+  re-sent until a ``plan`` answers (at most :data:`MAX_GOAL_ATTEMPTS`).
+- ``diagnostics`` out: collisions (contact events), minimum clearance,
+  travelled distance, distance to the goal, simulated time and the real-time
+  factor achieved.
+"""
+
+import math
+import os
+import pathlib
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseStamped, Twist
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import MarkerArray
+
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.scenario import load_scenario
+from fusion_planner.core.world import World
+from fusion_planner.ros import conversions as conv
+from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+
+NODE_NAME = 'simulator'
+PACKAGE = 'fusion_planner'
+#: The bundled scenario, relative to the package's share folder.
+DEMO_SCENARIO = pathlib.Path('config') / 'scenarios' / 'demo.yaml'
+
+#: QoS of ``map``: latched (a late joiner gets it).
+LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: QoS of ``plan`` (listened to only to confirm the goal was taken).
+PLAN_QOS = LATCHED_QOS
+#: QoS of ``goal_pose`` (as the global planner subscribes it).
+GOAL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Queue depth of ``cmd_vel``, ``clock``, ``obstacles`` [messages].
+DEFAULT_DEPTH = 10
+#: A command faster than this many times the robot's limits is refused [1].
+MAX_COMMAND_FACTOR = 10.0
+#: Wall period of the goal publisher's check [s].
+GOAL_CHECK_PERIOD_S = 0.25
+#: Wall time without a plan after which the goal is sent again [s].
+GOAL_RETRY_PERIOD_S = 2.0
+#: The goal is sent at most this many times [1].
+MAX_GOAL_ATTEMPTS = 5
+#: Slack on comparisons of simulated times [s] (sums of steps are inexact).
+TIME_EPS_S = 1e-6
+#: Longest wall time the simulation waits for a late command [s]; after it
+#: the controller is taken for gone and the simulation runs on (the robot
+#: stops after cmd_timeout) until commands flow again.
+COMMAND_WAIT_LIMIT_S = 1.0
+#: Wall period of the sensor messages while the world is held at t = 0 [s].
+PAUSED_PUBLISH_PERIOD_S = 0.1
+#: Wall time a subscriber must have been matched before the goal is sent [s]
+#: (gives the subscriber's side of discovery time to match us back).
+GOAL_MATCH_SETTLE_S = 0.3
+
+
+@dataclass(frozen=True)
+class SimulatorParams:
+    """Tunables of the simulator node (see :data:`PARAMETER_SPECS`)."""
+
+    scenario: str = ''
+    frame_id: str = 'map'
+    robot_frame_id: str = 'base_link'
+    rate: float = 20.0
+    real_time_factor: float = 1.0
+    scan_rate: float = 10.0
+    cmd_timeout: float = 0.5
+    sync_with_controller: bool = True
+    max_command_lag: float = 0.25
+    publish_goal: bool = False
+    start_paused: bool = False
+    diagnostics_period: float = 1.0
+
+    def __post_init__(self):
+        if self.scan_rate > self.rate:
+            raise InvalidInput(f'scan_rate ({self.scan_rate:g} Hz) cannot exceed the simulation '
+                               f'rate ({self.rate:g} Hz)')
+
+
+#: Every parameter of the node; config/params.yaml lists the same names.
+PARAMETER_SPECS = (
+    ParameterSpec('scenario', '',
+                  "scenario file (the core's YAML schema); '' loads the bundled "
+                  'config/scenarios/demo.yaml', read_only=True),
+    ParameterSpec('frame_id', 'map', 'frame of the map, odometry and obstacles', read_only=True),
+    ParameterSpec('robot_frame_id', 'base_link', 'robot frame: child of odom, frame of the scan',
+                  read_only=True),
+    ParameterSpec('rate', 20.0, 'integration steps per simulated second [Hz]',
+                  float_range(1.0, 1000.0), read_only=True),
+    ParameterSpec('real_time_factor', 1.0,
+                  'simulated seconds per wall second (10: ten times faster than real time) [1]',
+                  float_range(0.01, 1000.0)),
+    ParameterSpec('scan_rate', 10.0, 'laser scans (and obstacle markers) per simulated second [Hz]',
+                  float_range(0.1, 1000.0)),
+    ParameterSpec('cmd_timeout', 0.5,
+                  'a velocity command older than this (simulated time) stops the robot [s]',
+                  float_range(0.01, 60.0)),
+    ParameterSpec('sync_with_controller', True,
+                  'once cmd_vel commands flow, a step waits (up to 1 s of wall time) while the '
+                  'last command is older than max_command_lag, so a busy controller is not '
+                  'outrun at a high real_time_factor'),
+    ParameterSpec('max_command_lag', 0.25,
+                  'largest age of the last command, in simulated time, at which a step goes '
+                  "ahead with sync_with_controller; keep it at least the controller's period; "
+                  '0 is lockstep: one step per command (controller rate = rate) [s]',
+                  float_range(0.0, 60.0)),
+    ParameterSpec('publish_goal', False,
+                  "publish the scenario's goal on goal_pose once a subscriber is matched"),
+    ParameterSpec('start_paused', False,
+                  'hold the world at t = 0 (robot and moving obstacles still, sensors and clock '
+                  'still published) until the first non-empty plan appears on plan, so every '
+                  'run starts when the robot can move', read_only=True),
+    ParameterSpec('diagnostics_period', 1.0, 'wall period of the diagnostics status [s]',
+                  float_range(0.05, 60.0), read_only=True),
+)
+
+
+def share_file(relative):
+    """A file of the package's share folder.
+
+    Parameters
+    ----------
+    relative : str or os.PathLike
+        Path inside ``share/fusion_planner``, e.g. ``'config/params.yaml'``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file of the install found by ament_index_python (a colcon
+        workspace), else of the Python prefix (a pip install), else of the
+        source tree. It may not exist (the source tree's path is returned
+        then); whoever opens it reports that.
+    """
+    candidates = []
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(pathlib.Path(get_package_share_directory(PACKAGE)))
+    except (ImportError, LookupError, KeyError, OSError, ValueError):
+        pass  # not in an ament workspace
+    candidates.append(pathlib.Path(sys.prefix) / 'share' / PACKAGE)
+    candidates.append(pathlib.Path(__file__).resolve().parents[2])
+    for folder in candidates:
+        if (folder / relative).is_file():
+            return folder / relative
+    return candidates[-1] / relative
+
+
+def default_scenario_path():
+    """The bundled demo scenario, ``share/fusion_planner/config/scenarios/demo.yaml``.
+
+    Returns
+    -------
+    pathlib.Path
+        See :func:`share_file`.
+    """
+    return share_file(DEMO_SCENARIO)
+
+
+def scan_to_msg(scan, config, frame_id, stamp, scan_period):
+    """A ``sensor_msgs/LaserScan`` of a world scan.
+
+    Parameters
+    ----------
+    scan : fusion_planner.core.world.LaserScan
+        Beam angles (n,) [rad], robot frame, increasing; ranges (n,) [m].
+    config : fusion_planner.core.world.ScanConfig
+    frame_id : str
+        The robot frame (the laser sits at the robot centre).
+    stamp : builtin_interfaces.msg.Time
+    scan_period : float
+        Time between scans [s] (``scan_time``).
+
+    Returns
+    -------
+    sensor_msgs.msg.LaserScan
+        ``angle_min`` the first beam, ``angle_increment`` the beam spacing
+        (the field of view for a single beam), ranges as float32 with
+        ``+inf``/``-inf`` kept (REP-117).
+    """
+    msg = LaserScan()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp
+    angles = scan.angles
+    msg.angle_min = float(angles[0])
+    msg.angle_max = float(angles[-1])
+    msg.angle_increment = float(angles[1] - angles[0]) if len(angles) > 1 else float(config.fov)
+    msg.time_increment = 0.0
+    msg.scan_time = float(scan_period)
+    msg.range_min = float(config.range_min)
+    msg.range_max = float(config.range_max)
+    msg.ranges = scan.ranges.astype(np.float32)
+    return msg
+
+
+class SimulatorNode(Node):
+    """The simulator node (see the module docstring for its interface).
+
+    Parameters
+    ----------
+    node_name : str
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``namespace``,
+        ``parameter_overrides``, ``cli_args`` ...).
+
+    Raises
+    ------
+    InvalidInput
+        Bad start-up parameters, or a scenario file that cannot be loaded
+        (:class:`~fusion_planner.core.scenario.ScenarioError`,
+        :class:`~fusion_planner.core.errors.MapError`).
+
+    Attributes
+    ----------
+    scenario : Scenario
+    world : World
+        The simulated world; read it only from the executor's thread or
+        after spinning stopped.
+    """
+
+    def __init__(self, node_name=NODE_NAME, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self._params = ParameterHandler(self, SimulatorParams, PARAMETER_SPECS,
+                                        on_change=self._on_parameters_changed)
+        params = self._params.current
+        path = params.scenario or str(default_scenario_path())
+        self.scenario = load_scenario(os.path.expanduser(path))
+        s = self.scenario
+        if s.robot.max_speed / params.rate > s.robot.radius:
+            raise InvalidInput(
+                f'rate {params.rate:g} Hz lets the robot move more than its radius '
+                f'({s.robot.radius:g} m) in one step at {s.robot.max_speed:g} m/s: '
+                'contacts with thin walls could be missed; raise rate')
+        self.world = World(s.grid, s.robot, s.start, s.unknown_obstacles, s.moving_obstacles,
+                           s.scan, seed=s.seed)
+        self._frame_id = params.frame_id
+        self._robot_frame_id = params.robot_frame_id
+        self._dt = 1.0 / params.rate
+        self._goal = np.asarray(s.goal, dtype=float)
+        self._command = (0.0, 0.0)
+        self._command_time = -math.inf  # simulated time of the last command [s]
+        self._commands_flow = False  # a controller is sending commands (see max_command_lag)
+        self._waiting_since = None   # wall time the simulation began waiting for one [s]
+        self._next_scan_time = 0.0
+        self.min_clearance = self.world.clearance()
+        self.distance_travelled = 0.0
+        self._rtf_mark = (time.monotonic(), 0.0)  # (wall, sim) at the last status
+        self._rtf = 0.0
+        # goal publishing state
+        self._goal_attempts = 0
+        self._goal_sent_at = None    # wall time of the last send
+        self._goal_matched_at = None
+        self._goal_answered = False
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._paused = params.start_paused  # held at t = 0 until the first plan
+        self._paused_published = -math.inf  # wall time of the last sensors while held [s]
+
+        self._diagnostics = DiagnosticsReporter(self, 0.0)
+        guard = self._diagnostics.guard
+        self._map_pub = self.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
+        self._odom_pub = self.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
+        self._scan_pub = self.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
+        self._obstacles_pub = self.create_publisher(MarkerArray, 'obstacles', DEFAULT_DEPTH)
+        self._clock_pub = self.create_publisher(ClockMsg, 'clock', DEFAULT_DEPTH)
+        self._goal_pub = self.create_publisher(PoseStamped, 'goal_pose', GOAL_QOS)
+        self.create_subscription(Twist, 'cmd_vel', guard('cmd_vel', self._on_cmd_vel),
+                                 DEFAULT_DEPTH)
+        self.create_subscription(Path, 'plan', guard('plan', self._on_plan), PLAN_QOS)
+        self._step_timer = self._make_step_timer(params)
+        self.create_timer(GOAL_CHECK_PERIOD_S, guard('goal', self._on_goal_timer),
+                          clock=self._steady)
+        self.create_timer(params.diagnostics_period, guard('status', self._publish_status),
+                          clock=self._steady)
+
+        self._map_pub.publish(conv.grid_map_to_occupancy_grid(
+            s.grid, self._frame_id, conv.seconds_to_stamp(0.0)))
+        self.get_logger().info(
+            f"scenario '{s.name}' loaded from {path}: map {s.grid.width} x {s.grid.height} cells, "
+            f'{len(s.unknown_obstacles)} unknown and {len(s.moving_obstacles)} moving obstacles, '
+            f'goal ({self._goal[0]:.2f}, {self._goal[1]:.2f})')
+        self._diagnostics.update(OK, 'running', collisions=0)
+
+    # -- inputs ---------------------------------------------------------------
+
+    def _on_cmd_vel(self, msg):
+        """Take a velocity command; a bad one stops the robot and is reported."""
+        robot = self.scenario.robot
+        self._command_time = self.world.time
+        self._commands_flow = True
+        try:
+            v, omega = conv.twist_to_velocity(msg, 'cmd_vel')
+            if abs(v) > MAX_COMMAND_FACTOR * robot.max_speed \
+                    or abs(omega) > MAX_COMMAND_FACTOR * robot.max_omega:
+                raise InvalidInput(
+                    f'cmd_vel ({v:.3g} m/s, {omega:.3g} rad/s) exceeds '
+                    f'{MAX_COMMAND_FACTOR:g} times '
+                    f'the robot limits ({robot.max_speed:g} m/s, {robot.max_omega:g} rad/s)')
+        except InvalidInput:
+            self._command = (0.0, 0.0)  # refused: the robot stops for this command
+            raise
+        self._command = (v, omega)
+
+    def _on_plan(self, msg):
+        if self._goal_sent_at is not None:
+            self._goal_answered = True
+        if self._paused and len(msg.poses):
+            self._paused = False
+            self.get_logger().info('first plan received: the world starts moving')
+
+    def _on_parameters_changed(self, old, new):
+        if new.real_time_factor != old.real_time_factor:
+            self.destroy_timer(self._step_timer)
+            self._step_timer = self._make_step_timer(new)
+        self.get_logger().info(f'parameters changed: real_time_factor={new.real_time_factor:g}, '
+                               f'scan_rate={new.scan_rate:g} Hz, '
+                               f'cmd_timeout={new.cmd_timeout:g} s, '
+                               f'publish_goal={new.publish_goal}')
+
+    # -- simulation -------------------------------------------------------------
+
+    def _make_step_timer(self, params):
+        wall_period = self._dt / params.real_time_factor
+        return self.create_timer(wall_period, self._diagnostics.guard('step', self.step),
+                                 clock=self._steady)
+
+    def step(self):
+        """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+        params = self._params.current
+        world = self.world
+        if self._paused:
+            now = time.monotonic()
+            if now - self._paused_published >= PAUSED_PUBLISH_PERIOD_S:
+                self._paused_published = now
+                self._publish_sensors(params, force_scan=True)
+            return
+        if self._command_late(params):
+            return
+        v, omega = self._command
+        if world.time - self._command_time > params.cmd_timeout:
+            v = omega = 0.0
+        before = world.pose[:2].copy()
+        if world.step(v, omega, self._dt):
+            self._diagnostics.update(
+                WARN, f'collision {world.contact_events} at t = {world.time:.2f} s, robot at '
+                      f'({world.pose[0]:.2f}, {world.pose[1]:.2f})',
+                collisions=world.contact_events)
+            self.get_logger().warning(
+                f'collision (contact event {world.contact_events}) at t = {world.time:.2f} s')
+        self.distance_travelled += float(np.hypot(*(world.pose[:2] - before)))
+        self.min_clearance = min(self.min_clearance, world.clearance())
+        self._publish_sensors(params)
+
+    def _publish_sensors(self, params, force_scan=False):
+        """Publish odometry, the scan and obstacles when due, then the clock."""
+        world = self.world
+        stamp = conv.seconds_to_stamp(world.time)
+        # Sensors first, the clock last: a node whose timer wakes on the new
+        # time has (most likely) already received the data of that time.
+        self._odom_pub.publish(self._odometry(stamp))
+        if force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
+            period = 1.0 / params.scan_rate
+            self._next_scan_time = world.time + period
+            self._scan_pub.publish(scan_to_msg(world.scan(), self.scenario.scan,
+                                               self._robot_frame_id, stamp, period))
+            tracked = world.tracked_obstacles()
+            if len(tracked):
+                self._obstacles_pub.publish(conv.obstacles_to_markers(
+                    tracked, self._frame_id, stamp, ns='moving_obstacles'))
+        self._clock_pub.publish(ClockMsg(clock=stamp))
+
+    def _command_late(self, params):
+        """Whether this step waits for the controller's next command (see max_command_lag)."""
+        lag = self.world.time - self._command_time
+        if not params.sync_with_controller or not self._commands_flow \
+                or lag <= params.max_command_lag + TIME_EPS_S:
+            self._waiting_since = None
+            return False
+        now = time.monotonic()
+        if self._waiting_since is None:
+            self._waiting_since = now
+        if now - self._waiting_since < COMMAND_WAIT_LIMIT_S:
+            return True
+        self.get_logger().warning(
+            f'no cmd_vel for {COMMAND_WAIT_LIMIT_S:g} s of wall time: running on without the '
+            'controller (the robot stops after cmd_timeout)')
+        self._commands_flow = False
+        self._waiting_since = None
+        return False
+
+    def _odometry(self, stamp):
+        world = self.world
+        msg = Odometry()
+        msg.header.frame_id = self._frame_id
+        msg.header.stamp = stamp
+        msg.child_frame_id = self._robot_frame_id
+        msg.pose.pose.position.x = float(world.pose[0])
+        msg.pose.pose.position.y = float(world.pose[1])
+        msg.pose.pose.orientation = conv.quaternion_of_yaw(world.pose[2])
+        msg.twist.twist.linear.x = float(world.velocity[0])
+        msg.twist.twist.angular.z = float(world.velocity[1])
+        return msg
+
+    # -- goal and status ----------------------------------------------------------
+
+    def _on_goal_timer(self):
+        """Send the scenario's goal once the planner listens; re-send until a plan answers."""
+        if not self._params.current.publish_goal or self._goal_answered \
+                or self._goal_attempts >= MAX_GOAL_ATTEMPTS:
+            return
+        now = time.monotonic()
+        if self._goal_pub.get_subscription_count() == 0:
+            self._goal_matched_at = None
+            return
+        if self._goal_matched_at is None:
+            self._goal_matched_at = now
+        if now - self._goal_matched_at < GOAL_MATCH_SETTLE_S:
+            return
+        if self._goal_sent_at is not None and now - self._goal_sent_at < GOAL_RETRY_PERIOD_S:
+            return
+        msg = PoseStamped()
+        msg.header.frame_id = self._frame_id
+        msg.header.stamp = conv.seconds_to_stamp(self.world.time)
+        msg.pose.position.x = float(self._goal[0])
+        msg.pose.position.y = float(self._goal[1])
+        msg.pose.orientation.w = 1.0
+        self._goal_pub.publish(msg)
+        self._goal_sent_at = now
+        self._goal_attempts += 1
+        self.get_logger().info(f'goal ({self._goal[0]:.2f}, {self._goal[1]:.2f}) published '
+                               f'(attempt {self._goal_attempts})')
+
+    def _publish_status(self):
+        """Diagnostics heartbeat: collisions, clearance, distances, achieved speed."""
+        world = self.world
+        wall, sim = time.monotonic(), world.time
+        if wall > self._rtf_mark[0]:
+            self._rtf = (sim - self._rtf_mark[1]) / (wall - self._rtf_mark[0])
+        self._rtf_mark = (wall, sim)
+        collisions = world.contact_events
+        self._diagnostics.update(
+            OK if collisions == 0 else WARN,
+            f'{collisions} collision(s), t = {sim:.1f} s',
+            collisions=collisions, sim_time_s=sim, min_clearance_m=self.min_clearance,
+            distance_travelled_m=self.distance_travelled,
+            distance_to_goal_m=float(np.hypot(*(world.pose[:2] - self._goal))),
+            real_time_factor=self._rtf, x=float(world.pose[0]), y=float(world.pose[1]))
+
+
+def main(args=None):
+    """Run the simulator node until Ctrl-C or shutdown; returns the exit code."""
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimulatorNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except InvalidInput as err:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {err}')
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

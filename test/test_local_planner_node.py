@@ -1,0 +1,306 @@
+"""The local_planner node alone, driven by a fake robot node over DDS.
+
+The fake robot publishes odometry (standing still), empty scans and a plan,
+and records every ``cmd_vel``; the node runs on the wall clock here. Checks
+the safety policy (zero command with no plan, with stale odometry or scans,
+after the plan's publisher went away), the Twist/TwistStamped choice, the
+parameter table and run-time parameter changes.
+"""
+
+import dataclasses
+import math
+import pathlib
+import threading
+import time
+
+import pytest
+import yaml
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import Twist, TwistStamped  # noqa: E402
+from nav_msgs.msg import Odometry, Path  # noqa: E402
+from rcl_interfaces.msg import ParameterType  # noqa: E402
+from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import qos_profile_sensor_data  # noqa: E402
+from sensor_msgs.msg import LaserScan  # noqa: E402
+
+from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
+from fusion_planner.core import apf, follow  # noqa: E402
+from fusion_planner.ros import conversions as conv  # noqa: E402
+from fusion_planner.ros import local_planner as lp  # noqa: E402
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+
+#: Rate of the fake odometry and scans [Hz].
+SENSOR_RATE_HZ = 20.0
+#: Slack on wall-clock timing in a loaded test process [s].
+TIMING_SLACK_S = 0.15
+
+
+@pytest.fixture(scope='module')
+def context():
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+class FakeRobot:
+    """A node standing in for the robot and the global planner, plus the local planner."""
+
+    def __init__(self, context, stamped=False, **overrides):
+        self.node = Node('fake_robot', context=context)
+        self.planner = lp.LocalPlannerNode(
+            context=context,
+            parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
+        self.commands = []  # (wall time [s], v, omega, message)
+        self.lock = threading.Lock()
+        self.odom_on = True
+        self.scan_on = True
+        self.last_odom_wall = None
+        self.odom_pub = self.node.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
+        self.scan_pub = self.node.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
+        self.plan_pub = self.node.create_publisher(Path, 'plan', lp.PLAN_QOS)
+        self.node.create_subscription(TwistStamped if stamped else Twist, 'cmd_vel',
+                                      self._on_cmd, 50)
+        self.statuses = []  # key values of the local planner's diagnostics
+        self.node.create_subscription(DiagnosticArray, 'diagnostics', self._on_diagnostics, 50)
+        self.node.create_timer(1.0 / SENSOR_RATE_HZ, self._publish_sensors)
+        self.executor = MultiThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.planner)
+        self.spinner = Spinner(self.executor)
+
+    def _on_cmd(self, msg):
+        v, omega = conv.twist_to_velocity(msg)
+        with self.lock:
+            self.commands.append((time.monotonic(), v, omega, msg))
+
+    def _on_diagnostics(self, msg):
+        for status in msg.status:
+            if status.name.endswith('/local_planner'):
+                with self.lock:
+                    self.statuses.append({kv.key: kv.value for kv in status.values})
+
+    def _publish_sensors(self):
+        stamp = self.node.get_clock().now().to_msg()
+        if self.odom_on:
+            odom = Odometry()
+            odom.header.frame_id = 'map'
+            odom.header.stamp = stamp
+            odom.pose.pose.orientation.w = 1.0
+            self.odom_pub.publish(odom)
+            self.last_odom_wall = time.monotonic()
+        if self.scan_on:
+            scan = LaserScan()
+            scan.header.frame_id = 'base_link'
+            scan.header.stamp = stamp
+            scan.angle_min, scan.angle_increment = -math.pi, math.pi / 90
+            scan.range_min, scan.range_max = 0.05, 8.0
+            scan.ranges = [math.inf] * 180
+            self.scan_pub.publish(scan)
+
+    def publish_plan(self, points=((0.0, 0.0), (5.0, 0.0))):
+        stamp = self.node.get_clock().now().to_msg()
+        self.plan_pub.publish(conv.path_to_msg(list(points), 'map', stamp))
+
+    def publish_empty_plan(self):
+        msg = Path()
+        msg.header.frame_id = 'map'
+        self.plan_pub.publish(msg)
+
+    def commands_since(self, t):
+        with self.lock:
+            return [c for c in self.commands if c[0] >= t]
+
+    def wait(self, seconds):
+        time.sleep(seconds)
+
+    def wait_until(self, condition, timeout_s):
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if condition():
+                return True
+            time.sleep(0.02)
+        return condition()
+
+    def close(self):
+        shutdown_executor(self.spinner, [self.planner, self.node])
+
+
+@pytest.fixture
+def robot(context, request):
+    overrides = getattr(request, 'param', {})
+    fake = FakeRobot(context, **overrides)
+    yield fake
+    fake.close()
+
+
+def moving(commands):
+    return [c for c in commands if c[1] != 0.0 or c[2] != 0.0]
+
+
+def test_no_plan_gives_zero_commands_at_the_control_rate(robot):
+    t0 = time.monotonic()
+    robot.wait(1.0)
+    commands = robot.commands_since(t0)
+    assert len(commands) >= 0.5 * lp.LocalPlannerParams().control_rate  # ~20 Hz
+    assert not moving(commands)
+
+
+def test_plan_moves_then_stale_odometry_stops_within_the_timeout(robot):
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0), 'never moved'
+    robot.odom_on = False
+    time.sleep(0.1)
+    last_odom = robot.last_odom_wall
+    robot.wait(1.0)
+    timeout = lp.LocalPlannerParams().odom_timeout
+    after = robot.commands_since(last_odom)
+    late_moving = [c for c in moving(after) if c[0] > last_odom + timeout + TIMING_SLACK_S]
+    assert not late_moving, f'moving {late_moving[0][0] - last_odom:.3f} s after the last odometry'
+    first_zero = next(c[0] for c in after if c[1] == 0.0 and c[2] == 0.0)
+    assert first_zero - last_odom <= timeout + TIMING_SLACK_S
+    # Odometry back: it moves again.
+    robot.odom_on = True
+    t1 = time.monotonic()
+    assert robot.wait_until(lambda: moving(robot.commands_since(t1)), 3.0)
+
+
+def test_empty_plan_stops_the_robot(robot):
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0)
+    robot.publish_empty_plan()
+    t0 = time.monotonic()
+    robot.wait(0.5)
+    late = [c for c in moving(robot.commands_since(t0)) if c[0] > t0 + TIMING_SLACK_S]
+    assert not late
+
+
+@pytest.mark.parametrize('robot', [{'on_stale_scan': 'stop'}], indirect=True)
+def test_stale_scan_stops_the_robot(robot):
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0)
+    robot.scan_on = False
+    t0 = time.monotonic()
+    robot.wait(1.2)
+    timeout = lp.LocalPlannerParams().scan_timeout
+    late = [c for c in moving(robot.commands_since(t0)) if c[0] > t0 + timeout + TIMING_SLACK_S]
+    assert not late
+
+
+@pytest.mark.parametrize('robot', [{'on_stale_scan': 'slow', 'stale_scan_speed': 0.05}],
+                         indirect=True)
+def test_stale_scan_slows_the_robot_when_asked(robot):
+    robot.scan_on = False
+    robot.publish_plan()
+    t0 = time.monotonic()
+    assert robot.wait_until(lambda: moving(robot.commands_since(t0)), 5.0)
+    robot.wait(0.5)
+    assert all(c[1] <= 0.05 + 1e-9 for c in robot.commands_since(t0))
+
+
+def test_plan_publisher_gone_stops_the_robot(robot, context):
+    publisher_node = Node('short_lived_planner', context=context)
+    pub = publisher_node.create_publisher(Path, 'plan', lp.PLAN_QOS)
+    pub.publish(conv.path_to_msg([[0.0, 0.0], [5.0, 0.0]], 'map', conv.seconds_to_stamp(1.0)))
+    try:
+        assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0)
+    finally:
+        publisher_node.destroy_node()  # the global planner dies
+    robot.node.destroy_publisher(robot.plan_pub)
+    t0 = time.monotonic()
+    robot.wait(2.0)
+    timeout = lp.LocalPlannerParams().plan_timeout
+    late = [c for c in moving(robot.commands_since(t0)) if c[0] > t0 + timeout + 0.5]
+    assert not late
+
+
+@pytest.mark.parametrize('stamped', [True])
+def test_twist_stamped_by_parameter(context, stamped):
+    fake = FakeRobot(context, stamped=True, use_stamped_twist=True)
+    try:
+        fake.publish_plan()
+        assert fake.wait_until(lambda: moving(fake.commands_since(0.0)), 5.0)
+        msg = fake.commands_since(0.0)[-1][3]
+        assert isinstance(msg, TwistStamped)
+        assert msg.header.frame_id == 'base_link'
+    finally:
+        fake.close()
+
+
+def test_bad_messages_are_refused_and_the_node_keeps_driving(robot):
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0)
+    bad = Odometry()
+    bad.header.frame_id = 'map'
+    bad.pose.pose.position.x = math.nan
+    bad.pose.pose.orientation.w = 1.0
+    for _ in range(20):
+        robot.odom_pub.publish(bad)
+    wrong_frame = conv.path_to_msg([[0.0, 0.0], [1.0, 1.0]], 'odom', conv.seconds_to_stamp(1.0))
+    robot.plan_pub.publish(wrong_frame)
+    t0 = time.monotonic()
+    robot.wait(0.5)
+    assert moving(robot.commands_since(t0))
+
+
+def test_every_follower_and_field_coefficient_is_a_described_parameter_in_params_yaml(robot):
+    declared = {s.name for s in lp.PARAMETER_SPECS}
+    expected = {f.name for f in dataclasses.fields(follow.FollowerParams)
+                if f.name not in ('apf', 'control_period')}
+    expected |= {lp.APF_PREFIX + f.name for f in dataclasses.fields(apf.ApfParams)
+                 if f.name != 'robot_radius'}
+    assert expected <= declared
+    documented = set(lp.FOLLOWER_PARAMETERS) | {lp.APF_PREFIX + f for f in lp.APF_PARAMETERS}
+    missing_docs = expected - documented
+    assert not missing_docs, f'add descriptions and ranges for {sorted(missing_docs)}'
+    node = robot.planner
+    for spec in lp.PARAMETER_SPECS:
+        descriptor = node.describe_parameter(spec.name)
+        assert descriptor.description
+        if descriptor.type == ParameterType.PARAMETER_DOUBLE:
+            assert len(descriptor.floating_point_range) == 1, spec.name
+    doc = yaml.safe_load((REPO / 'config' / 'params.yaml').read_text())
+    section = doc['/**/local_planner']['ros__parameters']
+    assert set(section) == declared
+    stale = {s.name: (section[s.name], s.default) for s in lp.PARAMETER_SPECS
+             if section[s.name] != s.default}
+    assert not stale, f'params.yaml value, node default: {stale}'
+
+
+def test_run_time_parameter_changes_accepted_or_refused_with_a_reason(robot):
+    node = robot.planner
+    ok = node.set_parameters([Parameter('max_speed', value=0.3),
+                              Parameter('control_rate', value=10.0)])
+    assert all(r.successful for r in ok)
+    assert node._controller.params.max_speed == 0.3
+    refused = node.set_parameters([Parameter('apf_d_min', value=2.0)])[0]  # must stay < apf_rho
+    assert not refused.successful and 'd_min' in refused.reason
+    read_only = node.set_parameters([Parameter('use_stamped_twist', value=True)])[0]
+    assert not read_only.successful and read_only.reason
+    choice = node.set_parameters([Parameter('on_stale_scan', value='sprint')])[0]
+    assert not choice.successful and 'on_stale_scan' in choice.reason
+    swapped = node.set_parameters([Parameter('controller', value='astar-track')])[0]
+    assert swapped.successful
+    # Still commanding at the new rate.
+    t0 = time.monotonic()
+    robot.wait(1.0)
+    n = len(robot.commands_since(t0))
+    assert 5 <= n <= 15
+
+
+def test_diagnostics_report_status_and_step_timing(robot):
+    assert robot.wait_until(
+        lambda: any(st.get('status') == 'no_path' for st in robot.statuses), 5.0)
+    robot.publish_plan()
+    assert robot.wait_until(lambda: any(st.get('status') == 'moving' and 'step_ms_mean' in st
+                                        for st in robot.statuses), 5.0)
+    timed = [st for st in robot.statuses if 'step_ms_mean' in st][-1]
+    assert 0.0 < float(timed['step_ms_mean']) <= float(timed['step_ms_max'])
+    robot.odom_on = False
+    assert robot.wait_until(lambda: robot.statuses[-1].get('status') == 'stale_odom', 5.0)

@@ -1,0 +1,211 @@
+"""Closed-loop tests: the paper's claims (Figures 5-6), determinism, batches.
+
+These run the real controllers of fusion_planner.core.follow in the simulated
+world of fusion_planner.core.world on the scenarios of config/scenarios.
+"""
+
+import dataclasses
+import pathlib
+import types
+
+import numpy as np
+import pytest
+
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.grid import GridMap
+from fusion_planner.core.scenario import load_scenario, scenario_from_dict
+from fusion_planner.core.simulation import (
+    CONTROLLERS, batch_seeds, run_batch, run_episode, summarise)
+
+SCENARIOS = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'scenarios'
+
+#: Paper section 3.2 / Figure 5: the classic field fails these, the improved one does not.
+FIGURE_5 = ('fig5a', 'fig5b', 'fig5c')
+#: Paper section 3.3 / Figure 6 and the larger cases: fusion must reach them without contact.
+FUSION_CASES = ('fig6a', 'fig6b', 'warehouse', 'demo')
+
+
+def scenario(name):
+    return load_scenario(SCENARIOS / f'{name}.yaml')
+
+
+@pytest.fixture(scope='module')
+def results():
+    """Episode results cached per (scenario, controller) for the module."""
+    cache = {}
+
+    def get(name, controller):
+        key = (name, controller)
+        if key not in cache:
+            cache[key] = run_episode(scenario(name), controller)
+        return cache[key]
+    return get
+
+
+# -- the paper's claims ------------------------------------------------------------------
+
+@pytest.mark.parametrize('name', FIGURE_5)
+def test_classic_apf_fails_figure_5(results, name):
+    result = results(name, 'classic-apf')
+    assert not result.reached
+    assert result.failure is not None
+    final = result.trajectory[-1, :2]
+    assert np.hypot(*(final - np.array(scenario(name).goal))) > 0.15
+
+
+def test_classic_apf_stops_short_of_the_goal_beside_an_obstacle(results):
+    # Figure 5a: the goal-unreachable problem: it stalls on the approach line, near the goal
+    result = results('fig5a', 'classic-apf')
+    final = result.trajectory[-1, :2]
+    goal = np.array(scenario('fig5a').goal)
+    assert 0.15 < np.hypot(*(final - goal)) < 1.5
+    assert result.collisions == 0
+
+
+@pytest.mark.parametrize('k_rep', [0.002, 0.02])
+def test_figure_5a_does_not_hinge_on_one_repulsion_gain(k_rep):
+    # the goal-unreachable problem is a property of the classic field, not of a tuned gain
+    s = dataclasses.replace(scenario('fig5a'), follower=types.MappingProxyType({'apf': {'k_rep': k_rep}}))
+    assert not run_episode(s, 'classic-apf', record=False).reached
+    assert run_episode(s, 'apf', record=False).reached
+
+
+@pytest.mark.parametrize('controller', ['apf', 'fusion'])
+@pytest.mark.parametrize('name', FIGURE_5)
+def test_improved_field_and_fusion_reach_figure_5(results, name, controller):
+    result = results(name, controller)
+    assert result.reached, result.failure
+    assert result.collisions == 0
+    assert result.failure is None
+
+
+@pytest.mark.parametrize('name', FUSION_CASES)
+def test_fusion_reaches_figure_6_warehouse_and_demo_without_contact(results, name):
+    result = results(name, 'fusion')
+    assert result.reached, result.failure
+    assert result.collisions == 0
+    assert result.min_clearance_m > 0
+
+
+def test_demo_finishes_within_a_minute(results):
+    assert results('demo', 'fusion').time_s < 60.0
+
+
+# -- episode bookkeeping ---------------------------------------------------------------------
+
+def test_episode_records_are_consistent(results):
+    s = scenario('fig6b')
+    result = results('fig6b', 'fusion')
+    traj = result.trajectory
+    assert traj.ndim == 2 and traj.shape[1] == 3
+    assert result.obstacle_tracks.shape == (len(traj), len(s.moving_obstacles), 2)
+    assert np.allclose(traj[0], s.start)
+    assert result.path_length_m == pytest.approx(np.hypot(*np.diff(traj[:, :2], axis=0).T).sum())
+    assert result.time_s == pytest.approx((len(traj) - 1) * s.limits.dt)
+    assert np.allclose(result.plan_path[0], s.start[:2]) and np.allclose(result.plan_path[-1], s.goal)
+    assert result.plan_length_m > 0
+    summary = result.summary()
+    assert set(summary) >= {'reached', 'collisions', 'time_s', 'path_length_m', 'min_clearance_m',
+                            'stuck_events', 'failure'}
+
+
+def test_escape_points_are_where_escapes_started(results):
+    result = results('fig5b', 'apf')
+    assert result.stuck_events >= 1
+    assert len(result.escape_points) >= 1
+    # each escape point lies on the trajectory
+    for point in result.escape_points:
+        assert np.min(np.hypot(*(result.trajectory[:, :2] - point).T)) < 1e-9
+
+
+def test_same_seed_same_trajectory():
+    s = scenario('demo')       # scan noise and a random walk: both seeded
+    a = run_episode(s, 'fusion')
+    b = run_episode(s, 'fusion')
+    assert np.array_equal(a.trajectory, b.trajectory)
+    assert np.array_equal(a.obstacle_tracks, b.obstacle_tracks)
+    c = run_episode(s, 'fusion', seed=s.seed + 1)
+    assert not np.array_equal(a.obstacle_tracks, c.obstacle_tracks[:len(a.obstacle_tracks)]) \
+        or len(a.obstacle_tracks) != len(c.obstacle_tracks)
+
+
+def test_unknown_controller_is_refused():
+    with pytest.raises(InvalidInput):
+        run_episode(scenario('fig5a'), 'dwa')
+
+
+def _corridor(unknown=(), time_limit=60.0, max_collisions=10):
+    occ = np.zeros((40, 100), bool)
+    doc = {'robot': {'start': [1.0, 2.0, 0.0], 'radius': 0.2}, 'goal': [9.0, 2.0],
+           'unknown_obstacles': list(unknown),
+           'limits': {'time_limit_s': time_limit, 'max_collisions': max_collisions},
+           'scan': {'beams': 180, 'range_max': 6.0}}
+    return scenario_from_dict(doc, grid=GridMap(occ, 0.1))
+
+
+def test_a_path_tracker_hits_what_the_map_did_not_show_and_fusion_does_not():
+    s = _corridor([{'circle': {'center': [5.0, 2.0], 'radius': 0.4}}])
+    tracked = run_episode(s, 'astar-track', record=False)
+    assert tracked.collisions >= 1 and not tracked.reached
+    fused = run_episode(s, 'fusion', record=False)
+    assert fused.reached and fused.collisions == 0
+
+
+def test_time_and_collision_limits_end_an_episode():
+    slow = run_episode(_corridor(time_limit=2.0), 'fusion', record=False)
+    assert not slow.reached and slow.failure.startswith('time_limit')
+    assert slow.time_s == pytest.approx(2.0)
+    bumped = run_episode(_corridor([{'circle': {'center': [5.0, 2.0], 'radius': 0.4}}], max_collisions=1),
+                         'astar-track', record=False)
+    assert not bumped.reached
+    assert bumped.collisions == 1
+
+
+def test_no_plan_on_the_known_map_is_a_failure_not_an_error():
+    occ = np.zeros((40, 100), bool)
+    occ[:, 50] = True                      # a wall across the room
+    doc = {'robot': {'start': [1.0, 2.0, 0.0], 'radius': 0.2}, 'goal': [9.0, 2.0]}
+    s = scenario_from_dict(doc, grid=GridMap(occ, 0.1))
+    result = run_episode(s, 'fusion')
+    assert not result.reached and result.failure.startswith('no_path')
+
+
+# -- batches -----------------------------------------------------------------------------------
+
+def test_batch_seeds_are_distinct_and_reproducible():
+    a = batch_seeds(50, 7)
+    assert a == batch_seeds(50, 7) and len(set(a)) == 50
+    assert a != batch_seeds(50, 8)
+
+
+def test_batch_summary_counts():
+    rows = [
+        {'controller': 'x', 'scenario': 'a', 'reached': True, 'collisions': 0, 'time_s': 10.0,
+         'path_length_m': 11.0, 'optimal_length_m': 10.0, 'min_clearance_m': 0.3, 'stuck_events': 1,
+         'failure': None},
+        {'controller': 'x', 'scenario': 'b', 'reached': False, 'collisions': 2, 'time_s': 90.0,
+         'path_length_m': 5.0, 'optimal_length_m': 10.0, 'min_clearance_m': 0.0, 'stuck_events': 0,
+         'failure': 'time_limit: late'},
+    ]
+    s = summarise('x', rows)
+    assert s.success_rate == 0.5 and s.collisions == 2 and s.episodes_with_collisions == 1
+    assert s.mean_time_s == 10.0 and s.path_length_over_optimal == pytest.approx(1.1)
+    assert s.failures == [('b', 'time_limit: late')]
+
+
+def test_batches_do_not_depend_on_the_worker_count():
+    one = run_batch(2, 5, controllers=['astar-track', 'classic-apf'], workers=1)
+    two = run_batch(2, 5, controllers=['astar-track', 'classic-apf'], workers=2)
+    assert one.episodes == two.episodes
+    assert set(one.controllers) == {'astar-track', 'classic-apf'}
+
+
+def test_batch_refuses_bad_arguments():
+    with pytest.raises(InvalidInput):
+        run_batch(0, 1)
+    with pytest.raises(InvalidInput):
+        run_batch(1, 1, controllers=['fusion', 'teleport'])
+
+
+def test_all_controllers_are_known():
+    assert set(CONTROLLERS) == {'fusion', 'apf', 'classic-apf', 'astar-track'}
