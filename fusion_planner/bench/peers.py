@@ -433,20 +433,10 @@ def build_scenario(spec):
                 return False
             return True
 
-        if suite == 'big':
-            # One long pair: from near one corner to near the opposite one.
-            traversable = grid.traversable(NAV2_ROBOT_RADIUS)
-            free = np.argwhere(traversable)
-            order = np.argsort(free.sum(axis=1))
-            pair = None
-            for a, b in zip(order[:64], order[::-1][:64]):  # bounded
-                start, goal = tuple(int(v) for v in free[a]), tuple(int(v) for v in free[b])
-                if reachable(start, goal):
-                    pair = (start, goal)
-                    break
-            if pair is None:
-                raise MapError('no corner-to-corner pair found on the big map')
-            pairs = [pair]
+        if 'pair_cells' in spec:  # pairs found by the parent (memory probes)
+            pairs = [tuple(tuple(cell) for cell in pair) for pair in spec['pair_cells']]
+        elif suite == 'big':
+            pairs = [_corner_pair(grid.traversable(NAV2_ROBOT_RADIUS), reachable)]
         else:
             pairs = nav2_pairs(grid.traversable(NAV2_ROBOT_RADIUS), spec['pairs'],
                                NAV2_RESOLUTION, spec['seed'], spec['side_buffer'],
@@ -470,6 +460,31 @@ def build_scenario(spec):
                         optimal=[r.optimal_length for r in chosen], spec=spec,
                         description=f'{grid.shape[1]} x {grid.shape[0]}, {len(pairs)} rows')
     raise InvalidInput(f'unknown suite {suite!r}')
+
+
+def _corner_pair(traversable, reachable):
+    """A reachable pair of free cells near opposite corners (big suite)."""
+    height, width = traversable.shape
+    starts = _free_cells_from(traversable, 0, 0, 1, 1)
+    goals = _free_cells_from(traversable, height - 1, width - 1, -1, -1)
+    for start, goal in zip(starts, goals):  # bounded: a few cells of each corner
+        if reachable(start, goal):
+            return start, goal
+    raise MapError('no corner-to-corner pair found on the big map')
+
+
+def _free_cells_from(traversable, row, col, d_row, d_col, count=16):
+    """Up to ``count`` free cells on the anti-diagonals nearest a corner."""
+    height, width = traversable.shape
+    found = []
+    for k in range(height + width - 1):  # bounded: anti-diagonals
+        for i in range(max(0, k - width + 1), min(k, height - 1) + 1):
+            cell = (row + d_row * i, col + d_col * (k - i))
+            if traversable[cell]:
+                found.append(cell)
+                if len(found) == count:
+                    return found
+    return found
 
 
 def scenario_specs(suites, args):
@@ -1219,6 +1234,7 @@ def run(args):
         chosen = [p for p in planners if p in OURS] if scenario.suite == 'big' else planners
         scenario_rows, extra = run_scenario(scenario, chosen, args.budget, progress, unit=1.0)
         if args.memory or scenario.suite == 'big':
+            spec = dict(spec, pair_cells=[[list(a), list(b)] for a, b in scenario.pairs[:1]])
             base = measure_memory(spec, None, args.memory_timeout)
             for row in scenario_rows:
                 if row.pairs == 0:

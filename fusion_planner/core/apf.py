@@ -439,8 +439,8 @@ def adaptive_step(d_obstacle, speed, params):
     Examples
     --------
     >>> p = ApfParams(step_alpha=1.0, step_beta=2.0, l0=0.5, d_min=0.2, rho=1.0)
-    >>> float(adaptive_step(0.1, 0.5, p)), float(adaptive_step(0.5, 0.5, p)), float(adaptive_step(3.0, 0.5, p))
-    (0.025, 0.25, 0.5)
+    >>> [float(adaptive_step(d, 0.5, p)) for d in (0.1, 0.5, 3.0)]
+    [0.025, 0.25, 0.5]
     """
     d = np.asarray(d_obstacle, dtype=float)
     v = np.abs(np.asarray(speed, dtype=float))

@@ -38,6 +38,18 @@ The command pipeline (:class:`FollowerParams` holds every number):
    ``|d omega| <= max_alpha * control_period``. Speed limits win over
    acceleration limits if the measured velocity is already out of range.
 
+What the field sees: the obstacle points, thinned to one per
+``point_spacing`` square (so a wall's pull does not depend on the scan's
+angular density), plus, for each tracked obstacle, the nearest surface point
+of its circle at :data:`PREDICTION_SAMPLES` instants over
+``prediction_horizon``, predicted **relative to the robot** going on at its
+current velocity, weighted like a sampled half circumference and fading to
+:data:`FAR_PREDICTION_WEIGHT`; a predicted (not current) overlap repels as if
+:data:`PREDICTED_MIN_GAP` away. The field attracts to a carrot at most
+``lookahead`` ahead (``FieldFollower._field_goal``). Fusion sub-goals are the
+key nodes in turn; a node is passed when reached (``goal_tolerance``) or when
+a later one is visible with ``sight_clearance`` to spare.
+
 Local minima (issue 3, item 2): a field controller keeps the distance to its
 current sub-goal over time; **stuck** means a net progress below
 ``stuck_progress`` over ``stuck_window`` (standing still and oscillating
@@ -100,6 +112,20 @@ PREDICTION_SAMPLES = 5
 #: the robot, not swamp every other force with a near-infinite one.
 PREDICTED_MIN_GAP = 0.1
 
+#: A tracked obstacle closing in (faster than EVADE_MIN_CLOSING [m/s]) within
+#: this boundary-to-boundary gap [m] is a threat: if the way out is behind,
+#: the robot backs away instead of turning round first.
+EVADE_GAP = 0.8
+EVADE_MIN_CLOSING = 0.05
+
+#: Lane half-width margin [m] and gain of the sidestep off an oncoming tracked
+#: obstacle's lane (see ``FieldFollower._sidestep``).
+SIDESTEP_MARGIN = 0.3
+SIDESTEP_GAIN = 2.0
+
+#: Backing away needs at least this much free travel [m] behind the robot.
+EVADE_REAR_GAP = 0.5
+
 #: Weight of the last predicted position relative to the current one (linear
 #: in between): the farther future is less certain.
 FAR_PREDICTION_WEIGHT = 0.5
@@ -133,6 +159,9 @@ ROLLOUT_MAX_STEP = 0.2
 #: Path points ahead of the current one the tracker searches for the closest.
 TRACK_SEARCH_WINDOW = 200
 
+#: Spacing [m] of the tracker's resampled path.
+TRACK_SPACING = 0.05
+
 #: A force shorter than this has no direction: the robot stops (a minimum).
 FORCE_EPS = 1e-9
 
@@ -159,7 +188,8 @@ def _check_number(value, name, strict=True):
         and math.isfinite(value) and (value > 0 if strict else value >= 0)
     if not ok:
         relation = '>' if strict else '>='
-        raise InvalidInput(f'FollowerParams.{name} must be a finite number {relation} 0, got {value!r}')
+        raise InvalidInput(
+            f'FollowerParams.{name} must be a finite number {relation} 0, got {value!r}')
 
 
 @dataclass(frozen=True)
@@ -254,7 +284,8 @@ class FollowerParams:
 
     def __post_init__(self):
         if not isinstance(self.apf, ApfParams):
-            raise InvalidInput(f'FollowerParams.apf must be an ApfParams, got {type(self.apf).__name__}')
+            raise InvalidInput(
+                f'FollowerParams.apf must be an ApfParams, got {type(self.apf).__name__}')
         for name in ('max_speed', 'max_accel', 'max_omega', 'max_alpha', 'goal_tolerance',
                      'lookahead', 'control_period', 'stuck_window', 'stuck_progress',
                      'escape_time_limit', 'heading_gain', 'approach_gain', 'wall_distance',
@@ -263,7 +294,8 @@ class FollowerParams:
         for name in ('robot_radius', 'prediction_horizon', 'safety_distance', 'sight_clearance'):
             _check_number(getattr(self, name), name, strict=False)
         if self.apf.robot_radius != self.robot_radius:
-            object.__setattr__(self, 'apf', replace(self.apf, robot_radius=float(self.robot_radius)))
+            synced = replace(self.apf, robot_radius=float(self.robot_radius))
+            object.__setattr__(self, 'apf', synced)
 
 
 @dataclass(frozen=True)
@@ -302,7 +334,8 @@ class Observation:
         pose = np.asarray(self.pose, dtype=float)
         velocity = np.asarray(self.velocity, dtype=float)
         if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise InvalidInput(f'Observation.pose must be a finite (3,) x, y, yaw, got {self.pose!r}')
+            raise InvalidInput(
+                f'Observation.pose must be a finite (3,) x, y, yaw, got {self.pose!r}')
         if velocity.shape != (2,) or not np.all(np.isfinite(velocity)):
             raise InvalidInput(
                 f'Observation.velocity must be a finite (2,) v, omega, got {self.velocity!r}')
@@ -318,7 +351,8 @@ class Observation:
         if np.any(tracked[:, 4] < 0):
             raise InvalidInput('Observation.tracked radii must be >= 0')
         if not (isinstance(self.time, (int, float, np.floating)) and math.isfinite(self.time)):
-            raise InvalidInput(f'Observation.time must be a finite number of seconds, got {self.time!r}')
+            raise InvalidInput(
+                f'Observation.time must be a finite number of seconds, got {self.time!r}')
         object.__setattr__(self, 'pose', pose)
         object.__setattr__(self, 'velocity', velocity)
         object.__setattr__(self, 'obstacle_points', points)
@@ -372,14 +406,31 @@ class Controller(Protocol):
 # -- geometry helpers -------------------------------------------------------------
 
 def wrap_angle(angle):
-    """Wrap an angle [rad] to ``[-pi, pi)``."""
+    """Wrap an angle to ``[-pi, pi)``.
+
+    Parameters
+    ----------
+    angle : float
+        [rad].
+
+    Returns
+    -------
+    float
+        The same direction [rad] in ``[-pi, pi)``.
+
+    Examples
+    --------
+    >>> round(wrap_angle(3 * math.pi / 2), 6)
+    -1.570796
+    """
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _as_path(value, name):
     arr = np.asarray(value, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != 2 or len(arr) == 0:
-        raise InvalidInput(f'{name} must be a non-empty (N, 2) array of metres, got shape {arr.shape}')
+        raise InvalidInput(
+            f'{name} must be a non-empty (N, 2) array of metres, got shape {arr.shape}')
     if not np.all(np.isfinite(arr)):
         raise InvalidInput(f'{name} must be finite')
     return arr
@@ -462,6 +513,16 @@ def _segments_clear(q, ends, points, half_width):
     return np.all(px * px + py * py >= half_width**2, axis=0)
 
 
+def _resample(path, spacing):
+    """Points every ``spacing`` [m] (at most) along a polyline ``(N, 2)``, corners kept."""
+    pieces = [path[:1]]
+    for a, b in zip(path[:-1], path[1:]):
+        count = int(math.ceil(math.hypot(*(b - a)) / spacing))
+        if count > 0:
+            pieces.append(a + np.linspace(0.0, 1.0, count + 1)[1:, None] * (b - a))
+    return np.vstack(pieces)
+
+
 def _window_covered(history, now, window):
     """Drop entries older than needed; True when the oldest left is ``window`` [s] old.
 
@@ -493,6 +554,8 @@ class _Scene:
     circle_centres: np.ndarray    # (K, 2) current tracked centres [m]
     circle_radii: np.ndarray      # (K,) [m]
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
+    threat: bool                  # a tracked obstacle is closing in within EVADE_GAP
+    sidestep: np.ndarray          # (2,) push off the lanes of oncoming tracked obstacles
 
 
 @dataclass
@@ -576,7 +639,7 @@ class _Base:
         dw = p.max_alpha * p.control_period
         v = min(max(v_des, v0 - dv), v0 + dv)
         w = min(max(omega_des, w0 - dw), w0 + dw)
-        v = min(max(v, 0.0), p.max_speed)
+        v = min(max(v, -p.max_speed), p.max_speed)
         w = min(max(w, -p.max_omega), p.max_omega)
         return float(v), float(w)
 
@@ -591,15 +654,20 @@ class _Base:
         LOGGER.warning('controller failed: %s', reason)
         return self._stop(obs, 'failed', reason, sub_goal)
 
-    def _steer(self, heading, v_cap, obs):
-        """Heading control toward ``heading`` [rad] with forward speed at most ``v_cap``."""
+    def _steer(self, heading, v_cap, obs, reverse=False):
+        """Heading control toward ``heading`` [rad] at a speed of at most ``v_cap``.
+
+        Forward by default; with ``reverse`` the robot's back is turned
+        toward ``heading`` and it drives backward.
+        """
         p = self.params
-        error = wrap_angle(heading - obs.pose[2])
+        facing = obs.pose[2] + (math.pi if reverse else 0.0)
+        error = wrap_angle(heading - facing)
         turn = min(p.heading_gain * abs(error), math.sqrt(2.0 * p.max_alpha * abs(error)),
                    p.max_omega)
         omega = math.copysign(turn, error)
         v = min(p.max_speed, v_cap) * max(0.0, math.cos(error))**2
-        return self._limit(v, omega, obs)
+        return self._limit(-v if reverse else v, omega, obs)
 
 
 # -- field followers ----------------------------------------------------------------
@@ -690,6 +758,7 @@ class FieldFollower(_Base):
         tracked = obs.tracked
         if len(tracked) and not np.all(np.isfinite(tracked)):
             tracked = tracked[np.all(np.isfinite(tracked), axis=1)]
+        own = obs.velocity[0] * np.array([math.cos(obs.pose[2]), math.sin(obs.pose[2])])
         thinned = thin_points(points, p.point_spacing)
         if len(thinned):
             # only points within rho0 of the robot or of its rollout exert a force
@@ -705,8 +774,6 @@ class FieldFollower(_Base):
             horizon = p.prediction_horizon if self.predict else 0.0
             samples = PREDICTION_SAMPLES if horizon > 0 else 1
             times = np.linspace(0.0, horizon, samples)                          # (S,)
-            yaw = obs.pose[2]
-            own = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
             relative = velocities - own
             future = centres[None, :, :] + times[:, None, None] * relative[None, :, :]
             future_radii = np.tile(radii, samples)
@@ -737,8 +804,56 @@ class FieldFollower(_Base):
             if np.any(ahead):
                 gap = np.hypot(d[ahead, 0], d[ahead, 1]) - radii[ahead] - p.robot_radius
                 nearest = min(nearest, float(np.min(gap)))
+        threat = False
+        if len(tracked):
+            offset = q - centres                                    # obstacle -> robot
+            distance = np.hypot(offset[:, 0], offset[:, 1])
+            closing = np.einsum('ij,ij->i', velocities - own, offset) / np.maximum(
+                distance, apf.DIRECTION_EPS)
+            gap = distance - radii - p.robot_radius
+            in_front = -offset @ heading > 0.0
+            threat = bool(np.any((gap < EVADE_GAP) & (closing > EVADE_MIN_CLOSING) & in_front))
+        sidestep = self._sidestep(offset, velocities, radii) if len(tracked) else np.zeros(2)
         return _Scene(field_points, field_velocities, field_weights, points, centres, radii,
-                      nearest)
+                      nearest, threat, sidestep)
+
+    def _sidestep(self, offset, velocities, radii):
+        """Push off the lane of tracked obstacles that will run into the robot.
+
+        For each obstacle moving faster than EVADE_MIN_CLOSING, the robot is
+        in its lane when its distance to the line the obstacle moves along is
+        below ``radius + robot_radius + SIDESTEP_MARGIN`` and the obstacle
+        will get there within ``prediction_horizon``. The push points away
+        from that line (to the obstacle's left when exactly on it), grows as
+        the lane's centre and the time of arrival get closer, and is scaled
+        to SIDESTEP_GAIN times the largest attraction ``k_att * lookahead``.
+        People keep walking; stepping out of their lane beats braking in it.
+        """
+        p = self.params
+        horizon = p.prediction_horizon if self.predict else 0.0
+        if horizon <= 0:
+            return np.zeros(2)
+        speed = np.hypot(velocities[:, 0], velocities[:, 1])
+        moving = speed > EVADE_MIN_CLOSING
+        if not np.any(moving):
+            return np.zeros(2)
+        offset, velocities, radii, speed = offset[moving], velocities[moving], radii[moving], \
+            speed[moving]
+        lane = velocities / speed[:, None]
+        along = np.einsum('ij,ij->i', offset, lane)            # robot ahead of it when > 0
+        across = offset - along[:, None] * lane
+        distance = np.hypot(across[:, 0], across[:, 1])
+        width = radii + p.robot_radius + SIDESTEP_MARGIN
+        arrival = along / speed
+        active = (along > -radii) & (distance < width) & (arrival < horizon)
+        if not np.any(active):
+            return np.zeros(2)
+        left = np.c_[-lane[:, 1], lane[:, 0]]
+        side = np.where((distance > apf.DIRECTION_EPS)[:, None],
+                        across / np.maximum(distance, apf.DIRECTION_EPS)[:, None], left)
+        urgency = (1.0 - distance / width) * (1.0 - np.clip(arrival, 0.0, horizon) / horizon)
+        gain = SIDESTEP_GAIN * p.apf.k_att * p.lookahead
+        return gain * (np.where(active, urgency, 0.0) @ side)
 
     def _remember(self, obs, scene, force=False):
         """Add this step's static points to the replanning memory (once per MEMORY_PERIOD)."""
@@ -787,19 +902,20 @@ class FieldFollower(_Base):
         return q + offset * (lookahead / dist)
 
     def _force(self, q, target, scene, robot_velocity):
-        """Total force at ``q``: eq. (14) for the classic field, eqs. (10) + (15)-(17) otherwise."""
+        """Total force at ``q``: eq. (14) (classic field) or eqs. (10) + (15)-(17) (improved)."""
         ap = self.params.apf
         goal = self._field_goal(q, target)
         force = apf.attractive_force(q, goal, ap, check=False)                      # eq. (10)
         if self.field == 'classic':
             return force + apf.classic_repulsive_force(                            # eq. (14)
                 q, scene.field_points, ap, scene.field_weights, check=False)
-        force = force + apf.improved_repulsive_force(                               # eqs. (15)-(16)
+        force = force + apf.improved_repulsive_force(                              # eqs. (15)-(16)
             q, goal, scene.field_points, ap, scene.field_weights, check=False)
         if robot_velocity is not None:
             force = force + apf.velocity_repulsion(                                 # eq. (17)
                 q, robot_velocity, scene.field_points, scene.field_velocities, ap,
                 scene.field_weights, check=False)
+            force = force + scene.sidestep                                         # beyond the paper
         return force
 
     def _rollout(self, q, target, scene, first_direction):
@@ -973,7 +1089,7 @@ class FieldFollower(_Base):
         return direction / math.hypot(direction[0], direction[1])
 
     def _may_leave(self, q, target, scene):
-        """Bug2-like leave test: closer than every earlier hit, and a free line toward the target."""
+        """Bug2-like leave test: closer than every earlier hit, and a free line to the target."""
         p = self.params
         distance = math.hypot(*(target - q))
         if distance >= self._best_hit.get(self._index, math.inf) - p.stuck_progress:
@@ -1037,9 +1153,9 @@ class FieldFollower(_Base):
         target_distance = math.hypot(*(target - q))
 
         if self._episode is not None and obs.time - self._episode.start > p.escape_time_limit:
-            return self._fail(obs, f'still stuck after {p.escape_time_limit:g} s of escape near '
-                                   f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal',
-                              target.copy())
+            reason = (f'still stuck after {p.escape_time_limit:g} s of escape near '
+                      f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
+            return self._fail(obs, reason, target.copy())
 
         direction = None
         if self._follow is not None:
@@ -1081,14 +1197,28 @@ class FieldFollower(_Base):
         if direction is None:  # an exact minimum: stop; the stuck detector takes over
             v, w = self._limit(0.0, 0.0, obs)
             return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
-        step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)             # eq. (18)
-        v_cap = p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0))
-        v_cap = min(v_cap, p.approach_gain * goal_distance)
+        heading = math.atan2(direction[1], direction[0])
+        # evasion: with a moving obstacle closing in and the way out behind,
+        # back away at once instead of first turning round in its path
+        reverse = scene.threat and abs(wrap_angle(heading - yaw)) > 0.5 * math.pi
         clearance = p.robot_radius + p.safety_distance
-        gap = min(_front_gap(obs.pose, scene.all_points, np.zeros(len(scene.all_points)), clearance),
-                  _front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
-        v_cap = min(v_cap, _braking_speed(gap, p.max_accel, p.control_period))
-        v, w = self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
+        drive_pose = np.array([q[0], q[1], yaw + math.pi]) if reverse else obs.pose
+        gap = min(
+            _front_gap(drive_pose, scene.all_points, np.zeros(len(scene.all_points)), clearance),
+            _front_gap(drive_pose, scene.circle_centres, scene.circle_radii, clearance))
+        if reverse and gap < EVADE_REAR_GAP:  # no room behind: turn round instead
+            reverse = False
+            drive_pose = obs.pose
+            gap = min(
+                _front_gap(drive_pose, scene.all_points, np.zeros(len(scene.all_points)),
+                           clearance),
+                _front_gap(drive_pose, scene.circle_centres, scene.circle_radii, clearance))
+        v_cap = _braking_speed(gap, p.max_accel, p.control_period)
+        if not reverse:
+            step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)         # eq. (18)
+            v_cap = min(v_cap, p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
+                        p.approach_gain * goal_distance)
+        v, w = self._steer(heading, v_cap, obs, reverse)
         return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
 
 
@@ -1114,10 +1244,16 @@ class PathTracker(_Base):
             maxlen=int(math.ceil(4.0 * p.stuck_window / p.control_period)) + 16)
 
     def set_path(self, path, key_nodes):
-        """Take a global plan (see :meth:`FieldFollower.set_path`); the path is tracked."""
+        """Take a global plan (see :meth:`FieldFollower.set_path`); the path is tracked.
+
+        The path is resampled every :data:`TRACK_SPACING` metres (a plan may
+        be just its corners) and ends at ``key_nodes[-1]``.
+        """
         super().set_path(path, key_nodes)
-        if math.hypot(*(self._path[-1] - self._key_nodes[-1])) > 1e-9:
-            self._path = np.vstack([self._path, self._key_nodes[-1]])
+        path = self._path
+        if math.hypot(*(path[-1] - self._key_nodes[-1])) > 1e-9:
+            path = np.vstack([path, self._key_nodes[-1]])
+        self._dense = _resample(path, TRACK_SPACING)
 
     def compute(self, obs):
         """One control step (see :meth:`FieldFollower.compute`)."""
@@ -1133,9 +1269,9 @@ class PathTracker(_Base):
         goal_distance = math.hypot(*(goal - q))
         if goal_distance <= p.goal_tolerance:
             return self._stop(obs, 'arrived', sub_goal=goal.copy())
-        window = self._path[self._progress:self._progress + TRACK_SEARCH_WINDOW]
+        window = self._dense[self._progress:self._progress + TRACK_SEARCH_WINDOW]
         self._progress += int(np.argmin(np.hypot(window[:, 0] - q[0], window[:, 1] - q[1])))
-        ahead = self._path[self._progress:]
+        ahead = self._dense[self._progress:]
         far = np.nonzero(np.hypot(ahead[:, 0] - q[0], ahead[:, 1] - q[1]) >= p.lookahead)[0]
         carrot = ahead[far[0]] if len(far) else goal
         self._history.append((obs.time, q.copy()))
@@ -1147,7 +1283,7 @@ class PathTracker(_Base):
                                        'tracking has no obstacle avoidance', carrot.copy())
         offset = carrot - q
         v, w = self._steer(math.atan2(offset[1], offset[0]), p.approach_gain * goal_distance, obs)
-        plan = np.vstack([q, self._path[self._progress:self._progress + ROLLOUT_STEPS + 1]])
+        plan = np.vstack([q, ahead[:ROLLOUT_STEPS * 4:4]])
         return Command(v, w, 'moving', sub_goal=carrot.copy(), local_plan=plan)
 
 

@@ -28,6 +28,7 @@ cells alone, from the per-column distances to the nearest obstacle.
 """
 
 import math
+import mmap
 
 import numpy as np
 from scipy import ndimage
@@ -52,6 +53,9 @@ LOCAL_QUERY_MAX_WORK = 2
 SMALL_MAP_CELLS = 1 << 16
 #: Largest number of values one local clearance gather reads at once.
 _GATHER_CHUNK = 1 << 22
+#: Columns processed at once by the per-column distance pass (bounds its
+#: temporary arrays to a few bytes per cell of such a block).
+_COLUMN_BLOCK = 512
 
 
 class GridMap:
@@ -114,8 +118,7 @@ class GridMap:
         self._sin = math.sin(self.origin[2])
         self._clearance = None
         self._column_distance = None
-        self._cell_clearance = None  # flat cache of local queries [m]
-        self._cell_known = None  # flat bool: which entries of the cache are set
+        self._cell_squared = None  # flat cache of local queries: squared distance + 1, 0 unknown
         self._traversable = {}
 
     # -- shape and geometry -------------------------------------------------
@@ -323,42 +326,56 @@ class GridMap:
             return self._clearance[rows, cols]
         if not self.occupied.any():
             return np.full(len(cells), np.inf)
-        if self._cell_clearance is None:
-            # Pages of these are only touched where queries write.
-            self._cell_clearance = np.empty(self.occupied.size)
-            self._cell_known = np.zeros(self.occupied.size, dtype=bool)
+        if self._cell_squared is None:
+            # An anonymous mapping: zero (unknown) pages take no memory until
+            # a query writes them, wherever its cells lie on the map.
+            self._cell_squared = np.frombuffer(mmap.mmap(-1, 8 * self.occupied.size),
+                                               dtype=np.int64)
         flat = rows * width + cols
-        known = self._cell_known[flat]
-        if not known.all():
-            missing = np.unique(flat[~known])
+        stored = self._cell_squared[flat]
+        unknown = stored == 0
+        if unknown.any():
+            missing = np.unique(flat[unknown])
             squared = self._local_squared_distance(*np.divmod(missing, width))
             if squared is None:  # cheaper as a whole map
                 return self.clearance[rows, cols]
-            self._cell_clearance[missing] = np.sqrt(squared.astype(float)) * self.resolution
-            self._cell_known[missing] = True
-        return self._cell_clearance[flat]
+            self._cell_squared[missing] = squared + 1
+            stored = self._cell_squared[flat]
+        return np.sqrt((stored - 1).astype(float)) * self.resolution
 
     def _column_distances(self):
         """Distance [cells] to the nearest occupied cell of the same column.
 
-        int32 (H, W); :data:`_FAR_CELLS` where the column has none. Kept.
+        (H, W); where the column has none, a value whose square exceeds any
+        squared distance inside the map: 65535 in uint16 when the map's
+        diagonal is shorter, else :data:`_FAR_CELLS` in int32. Kept.
         """
         if self._column_distance is None:
-            height = self.height
+            height, width = self.shape
+            far = np.iinfo(np.uint16).max
+            if height ** 2 + width ** 2 < far ** 2:
+                # Half the memory; "no obstacle in this column" stays farther
+                # than any distance inside the map.
+                distance = np.empty(self.shape, np.uint16)
+            else:
+                distance, far = np.empty(self.shape, np.int32), _FAR_CELLS
             rows = np.arange(height, dtype=np.int32)[:, None]
-            # Index of the last occupied cell at or above each cell ...
-            above = np.where(self.occupied, rows, np.int32(-_FAR_CELLS))
-            np.maximum.accumulate(above, axis=0, out=above)
-            # ... and of the first at or below (on the flipped grid).
-            below = np.where(self.occupied[::-1], rows[::-1], np.int32(height + _FAR_CELLS))
-            np.minimum.accumulate(below, axis=0, out=below)
-            below = below[::-1]
-            np.subtract(rows, above, out=above)
-            np.subtract(below, rows, out=below)
-            np.minimum(above, below, out=above)
-            np.minimum(above, _FAR_CELLS, out=above)
-            above.setflags(write=False)
-            self._column_distance = above
+            for lo in range(0, width, _COLUMN_BLOCK):  # bounded: blocks of columns
+                occupied = self.occupied[:, lo:lo + _COLUMN_BLOCK]
+                # Index of the last occupied cell at or above each cell ...
+                above = np.where(occupied, rows, np.int32(-_FAR_CELLS))
+                np.maximum.accumulate(above, axis=0, out=above)
+                # ... and of the first at or below (on the flipped block).
+                below = np.where(occupied[::-1], rows[::-1], np.int32(height + _FAR_CELLS))
+                np.minimum.accumulate(below, axis=0, out=below)
+                below = below[::-1]
+                np.subtract(rows, above, out=above)
+                np.subtract(below, rows, out=below)
+                np.minimum(above, below, out=above)
+                np.minimum(above, far, out=above)
+                distance[:, lo:lo + _COLUMN_BLOCK] = above
+            distance.setflags(write=False)
+            self._column_distance = distance
         return self._column_distance
 
     def _local_squared_distance(self, rows, cols):
@@ -437,7 +454,7 @@ def _bounded_squared_distance(column_distance, reach):
 
     Parameters
     ----------
-    column_distance : ndarray of int32, shape (H, W)
+    column_distance : ndarray of uint16 or int32, shape (H, W)
         Distance to the nearest occupied cell of the same column.
     reach : int
         Largest column offset considered [cells], >= 0.
@@ -454,7 +471,8 @@ def _bounded_squared_distance(column_distance, reach):
     """
     # Squares stay below 2 (reach + 1)**2: 16 bits suffice for any bounded reach.
     dtype = np.int16 if 2 * (reach + 1) ** 2 < np.iinfo(np.int16).max else np.int32
-    capped = np.minimum(column_distance, reach + 1).astype(dtype)
+    capped = np.empty(column_distance.shape, dtype)
+    np.minimum(column_distance, reach + 1, out=capped, casting='unsafe')
     capped *= capped
     squared = capped.copy()
     scratch = np.empty_like(capped)

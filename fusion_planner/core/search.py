@@ -35,6 +35,7 @@ Determination of Minimum Cost Paths", IEEE TSSC 4(2), 1968.
 
 import heapq
 import math
+import mmap
 import time
 from array import array
 from dataclasses import dataclass
@@ -236,8 +237,8 @@ class PaddedGrid:
 
     Build once per map and inflation radius and reuse across searches: the
     legal-move bitmasks and move tables of each neighbourhood are computed
-    on first use and kept, and so is the cost array of the search
-    (8 bytes per padded cell).
+    on first use and kept, and so is the cost array of the search (up to
+    8 bytes per padded cell, for the cells searches have reached).
 
     Parameters
     ----------
@@ -319,12 +320,15 @@ class PaddedGrid:
         -------
         full : mapping of int to tuple
             ``full[mask]``: the entries ``(flat offset, cost, d_row, d_col,
-            code)`` of the moves set in ``mask``.
+            code)`` of the moves set in ``mask``; ``code`` is 1 + the
+            move's index in :func:`neighbourhood.moves`.
         forward, rest : list of mapping of int to tuple
             For each of the 8 goal sectors (:func:`neighbourhood.sector_of`),
             the same restricted to the moves heading towards the goal and to
             the others (:func:`neighbourhood.sector_split`). Filled on first
             use of a mask, then cached.
+        offsets : list of int
+            Flat offset of each move, by ``code - 1``.
         """
         tables = self._tables.get(neighbourhood)
         if tables is None:
@@ -334,16 +338,21 @@ class PaddedGrid:
             forward_idx, rest_idx = nbh.sector_split(table)
             tables = (_MovesByMask(entries, range(len(table))),
                       [_MovesByMask(entries, idx) for idx in forward_idx],
-                      [_MovesByMask(entries, idx) for idx in rest_idx])
+                      [_MovesByMask(entries, idx) for idx in rest_idx],
+                      [entry[0] for entry in entries])
             self._tables[neighbourhood] = tables
         return tables
 
     def _take_costs(self):
-        """A cost array of padded-grid size (contents undefined)."""
+        """A float cost array of padded-grid size (contents undefined).
+
+        Backed by an anonymous memory mapping, so only the pages a search
+        writes take memory; kept for the next search on this grid.
+        """
         try:
             return self._cost_pool.pop()
         except IndexError:
-            return array('d', bytes(8 * len(self.passable)))
+            return memoryview(mmap.mmap(-1, 8 * len(self.passable))).cast('d')
 
     def _give_costs(self, costs):
         self._cost_pool.append(costs)
@@ -443,8 +452,7 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     width = grid.width
     neighbourhood = policy.neighbourhood
     allowed = grid.allowed_moves(neighbourhood)
-    full, forward, rest = grid.move_tables(neighbourhood)
-    offsets = [entry[0] for entry in full[(1 << len(nbh.moves(neighbourhood))) - 1]]
+    full, forward, rest, offsets = grid.move_tables(neighbourhood)
     variable = policy.variable_neighbourhood
     alpha = float(policy.alpha)
     kind = _HEURISTIC_CODES[policy.heuristic]

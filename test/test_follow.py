@@ -1,0 +1,508 @@
+"""Closed-loop tests of the local controllers (fusion_planner.core.follow).
+
+The paper's claims (Figure 5: goal beside an obstacle, local-minimum traps;
+Figure 6: fusion with moving obstacles) are checked in a small kinematic loop
+written here: a unicycle integrated with the commands, obstacles as point
+sets sampled on circles and walls, moving circles at constant velocity. It
+does not depend on the simulation world module.
+"""
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+
+from fusion_planner.core.apf import ApfParams
+from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.follow import (
+    CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
+    Observation, make_controller, thin_points)
+from fusion_planner.core.grid import GridMap
+
+DT = 0.05            # control period and integration step [s]
+RADIUS = 0.2         # robot radius [m]
+SPACING = 0.05       # spacing of sampled obstacle points [m]
+SENSOR_RANGE = 6.0   # points farther than this are not observed [m]
+EPS = 1e-9
+
+
+def circle(centre, radius, spacing=SPACING):
+    """Points on a circle [m]."""
+    count = max(8, int(2 * math.pi * radius / spacing))
+    angles = np.linspace(0.0, 2 * math.pi, count, endpoint=False)
+    return np.asarray(centre, float) + radius * np.c_[np.cos(angles), np.sin(angles)]
+
+
+def wall(a, b, spacing=SPACING):
+    """Points on a segment [m]."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    count = max(2, int(np.linalg.norm(b - a) / spacing) + 1)
+    return a + np.linspace(0.0, 1.0, count)[:, None] * (b - a)
+
+
+def params(**changes):
+    base = dict(max_speed=0.8, max_accel=1.0, max_omega=2.0, max_alpha=4.0, robot_radius=RADIUS,
+                control_period=DT, escape_time_limit=60.0)
+    base.update(changes)
+    return FollowerParams(**base)
+
+
+@dataclass
+class Mover:
+    """A circle moving at constant velocity."""
+
+    start: tuple
+    velocity: tuple
+    radius: float
+
+    def at(self, t):
+        return np.asarray(self.start, float) + t * np.asarray(self.velocity, float)
+
+
+@dataclass
+class Run:
+    """What happened in one closed-loop run."""
+
+    poses: list = field(default_factory=list)
+    commands: list = field(default_factory=list)
+    measured: list = field(default_factory=list)   # velocity the command was limited against
+    min_static_clearance: float = math.inf
+    min_mover_clearance: float = math.inf
+    blocked_steps: int = 0
+
+    @property
+    def final(self):
+        return self.commands[-1]
+
+    @property
+    def statuses(self):
+        return [c.status for c in self.commands]
+
+
+def simulate(controller, start, goal, points=np.zeros((0, 2)), movers=(), path=None,
+             key_nodes=None, duration=60.0, block=False, extra_steps=20):
+    """Drive ``controller`` from ``start`` (x, y, yaw) toward ``goal``.
+
+    ``path``/``key_nodes`` default to the straight line start -> goal. With
+    ``block`` a step that would overlap a static point is refused (the robot
+    stays, like a bump). Runs ``extra_steps`` more steps after arrival or
+    failure to check that the controller stays put.
+    """
+    pose = np.asarray(start, float)
+    goal = np.asarray(goal, float)
+    points = np.asarray(points, float).reshape(-1, 2)
+    if path is None:
+        path = np.array([pose[:2], goal])
+    if key_nodes is None:
+        key_nodes = path
+    controller.set_path(np.asarray(path, float), np.asarray(key_nodes, float))
+    velocity = np.zeros(2)
+    run = Run()
+    remaining = None
+    for k in range(int(duration / DT)):
+        t = k * DT
+        tracked = np.array([[*m.at(t), *m.velocity, m.radius] for m in movers]).reshape(-1, 5)
+        seen = points[np.hypot(*(points - pose[:2]).T) < SENSOR_RANGE] if len(points) else points
+        mover_points = [circle(m.at(t), m.radius) for m in movers]
+        observed = np.vstack([seen, *mover_points]) if mover_points else seen
+        obs = Observation(pose.copy(), velocity.copy(), observed, tracked, t)
+        command = controller.compute(obs)
+        run.poses.append(pose.copy())
+        run.commands.append(command)
+        run.measured.append(velocity.copy())
+        new = pose + DT * np.array([command.v * math.cos(pose[2]), command.v * math.sin(pose[2]),
+                                    command.omega])
+        if len(points):
+            clearance = float(np.min(np.hypot(*(points - new[:2]).T))) - RADIUS
+            if block and clearance < 0:
+                run.blocked_steps += 1
+                new[:2] = pose[:2]
+                clearance = float(np.min(np.hypot(*(points - new[:2]).T))) - RADIUS
+            run.min_static_clearance = min(run.min_static_clearance, clearance)
+        for mover in movers:
+            gap = float(np.hypot(*(mover.at(t + DT) - new[:2]))) - mover.radius - RADIUS
+            run.min_mover_clearance = min(run.min_mover_clearance, gap)
+        pose = new
+        velocity = np.array([command.v, command.omega])
+        if remaining is None and command.status in ('arrived', 'failed'):
+            remaining = extra_steps
+        if remaining is not None:
+            remaining -= 1
+            if remaining < 0:
+                break
+    return run
+
+
+def assert_limits(run, p):
+    """Every command within the speed, turn-rate and acceleration limits."""
+    dv = p.max_accel * p.control_period
+    dw = p.max_alpha * p.control_period
+    for command, (v0, w0) in zip(run.commands, run.measured):
+        assert isinstance(command, Command) and command.status in STATUSES
+        assert math.isfinite(command.v) and math.isfinite(command.omega)
+        assert abs(command.v) <= p.max_speed + EPS
+        assert abs(command.omega) <= p.max_omega + EPS
+        assert abs(command.v - v0) <= dv + EPS
+        assert abs(command.omega - w0) <= dw + EPS
+
+
+def assert_honest_arrival(run, goal, p):
+    """'arrived' only inside the tolerance."""
+    for pose, command in zip(run.poses, run.commands):
+        if command.status == 'arrived':
+            assert np.hypot(*(pose[:2] - goal)) <= p.goal_tolerance + EPS
+
+
+def reached(run):
+    return run.final.status == 'arrived'
+
+
+# -- scenes: the paper's Figure 5 -----------------------------------------------------------
+
+GOAL_5A = np.array([6.0, 0.0])
+#: Figure 5a: the goal right beside an obstacle (0.45 m from its surface).
+SCENE_5A = circle((6.0, 0.95), 0.5)
+
+GOAL_U = np.array([9.0, 0.0])
+#: Figures 5b/5c: a U-shaped trap open toward the robot, the goal behind it.
+SCENE_U = np.vstack([wall((4.0, -1.5), (6.0, -1.5)), wall((6.0, -1.5), (6.0, 1.5)),
+                     wall((4.0, 1.5), (6.0, 1.5))])
+#: A path around the trap (what the A* planner would give on a map showing it).
+KEYS_U = np.array([[0.0, 0.0], [3.0, -2.5], [7.0, -2.5], [9.0, 0.0]])
+
+
+@pytest.fixture(scope='module')
+def runs_5a():
+    p = params()
+    return {name: (simulate(make_controller(name, p), (0.0, 0.0, 0.0), GOAL_5A, SCENE_5A,
+                            duration=40.0), p)
+            for name in ('classic-apf', 'apf', 'fusion')}
+
+
+@pytest.fixture(scope='module')
+def runs_u():
+    p = params()
+    return {
+        'classic-apf': simulate(make_controller('classic-apf', p), (0.0, 0.0, 0.0), GOAL_U,
+                                SCENE_U, duration=60.0),
+        'apf': simulate(make_controller('apf', p), (0.0, 0.0, 0.0), GOAL_U, SCENE_U,
+                        duration=90.0),
+        'fusion': simulate(make_controller('fusion', p), (0.0, 0.0, 0.0), GOAL_U, SCENE_U,
+                           path=KEYS_U, key_nodes=KEYS_U, duration=60.0),
+    }, p
+
+
+def test_5a_classic_field_cannot_reach_a_goal_beside_an_obstacle(runs_5a):
+    run, p = runs_5a['classic-apf']
+    assert 'arrived' not in run.statuses
+    assert run.final.status == 'failed' and 'local minimum' in run.final.reason
+    distance = np.hypot(*(run.poses[-1][:2] - GOAL_5A))
+    assert distance > p.goal_tolerance
+    assert_limits(run, p)
+
+
+@pytest.mark.parametrize('name', ['apf', 'fusion'])
+def test_5a_improved_field_reaches_the_goal_beside_an_obstacle(runs_5a, name):
+    run, p = runs_5a[name]
+    assert reached(run), run.final
+    assert run.min_static_clearance > 0
+    assert_limits(run, p)
+    assert_honest_arrival(run, GOAL_5A, p)
+
+
+def test_5bc_classic_field_is_caught_by_the_trap(runs_u):
+    runs, p = runs_u
+    run = runs['classic-apf']
+    assert 'arrived' not in run.statuses
+    assert run.final.status == 'failed' and run.final.reason
+    stop = run.poses[-1][:2]
+    assert 4.0 < stop[0] < 6.0 and abs(stop[1]) < 1.5          # inside the U
+    assert_limits(run, p)
+
+
+def test_5bc_fusion_with_key_nodes_around_the_trap_reaches(runs_u):
+    runs, p = runs_u
+    run = runs['fusion']
+    assert reached(run), run.final
+    assert run.min_static_clearance > 0
+    assert_limits(run, p)
+    assert_honest_arrival(run, GOAL_U, p)
+
+
+def test_5bc_improved_field_escapes_the_trap_by_boundary_following(runs_u):
+    runs, p = runs_u
+    run = runs['apf']
+    assert reached(run), run.final
+    assert 'stuck_escaping' in run.statuses                      # it was trapped, then escaped
+    assert run.min_static_clearance > 0
+    assert_limits(run, p)
+    assert_honest_arrival(run, GOAL_U, p)
+
+
+def test_fusion_escapes_an_unknown_trap_on_a_straight_path():
+    """The trap is not in the plan (straight key nodes): escape, do not give up."""
+    p = params()
+    controller = make_controller('fusion', p)
+    run = simulate(controller, (0.0, 0.0, 0.0), GOAL_U, SCENE_U, duration=90.0)
+    assert reached(run), run.final
+    assert controller.stuck_events >= 1
+    assert run.min_static_clearance > 0
+    assert_limits(run, p)
+
+
+# -- arrival, failure, honesty -----------------------------------------------------------------
+
+@pytest.mark.parametrize('name', CONTROLLER_NAMES)
+def test_free_space_arrival_stops_inside_the_tolerance(name):
+    p = params()
+    goal = np.array([4.0, 3.0])
+    run = simulate(make_controller(name, p), (0.0, 0.0, math.pi), goal, duration=40.0)
+    assert reached(run)
+    last = run.commands[-8:]
+    assert all(c.status == 'arrived' for c in last)
+    assert last[-1].v == 0.0 and last[-1].omega == 0.0
+    assert np.hypot(*(run.poses[-1][:2] - goal)) <= p.goal_tolerance
+    assert_limits(run, p)
+    assert_honest_arrival(run, goal, p)
+
+
+def test_closed_box_ends_in_failure_with_a_reason_within_the_time_limit():
+    p = params(escape_time_limit=15.0)
+    box = np.vstack([wall((-1.5, -1.5), (1.5, -1.5)), wall((1.5, -1.5), (1.5, 1.5)),
+                     wall((1.5, 1.5), (-1.5, 1.5)), wall((-1.5, 1.5), (-1.5, -1.5))])
+    goal = np.array([5.0, 0.0])
+    controller = make_controller('fusion', p)
+    run = simulate(controller, (0.0, 0.0, 0.0), goal, box, duration=80.0)
+    statuses = run.statuses
+    assert 'arrived' not in statuses
+    assert run.final.status == 'failed'
+    assert 'stuck' in run.final.reason and len(run.final.reason) > 20
+    first_escape = statuses.index('stuck_escaping') * DT
+    failed_at = statuses.index('failed') * DT
+    assert failed_at - first_escape <= p.escape_time_limit + 2 * DT
+    assert controller.stuck_events >= 1
+    assert run.min_static_clearance > 0
+    assert_limits(run, p)
+    # failure is latched until a new plan; a new plan clears it
+    obs = Observation(run.poses[-1], np.zeros(2), box, np.zeros((0, 5)), 100.0)
+    assert controller.compute(obs).status == 'failed'
+    controller.set_path(np.array([[0.0, 0.0], [0.5, 0.0]]), np.array([[0.0, 0.0], [0.5, 0.0]]))
+    assert controller.compute(obs).status in ('moving', 'arrived')
+
+
+def test_reset_forgets_plan_and_counts():
+    controller = make_controller('fusion', params())
+    obs = Observation(np.zeros(3), np.zeros(2), np.zeros((0, 2)), np.zeros((0, 5)), 0.0)
+    assert controller.compute(obs).status == 'no_path'
+    controller.set_path(np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[0.0, 0.0], [1.0, 0.0]]))
+    assert controller.compute(obs).status == 'moving'
+    controller.stuck_events = 3
+    controller.reset()
+    command = controller.compute(obs)
+    assert command.status == 'no_path' and command.reason
+    assert controller.stuck_events == 0 and command.v == 0.0
+
+
+def test_no_path_brakes_within_limits():
+    p = params()
+    controller = make_controller('apf', p)
+    obs = Observation(np.zeros(3), np.array([0.8, 1.0]), np.zeros((0, 2)), np.zeros((0, 5)), 0.0)
+    command = controller.compute(obs)
+    assert command.status == 'no_path'
+    assert math.isclose(command.v, 0.8 - p.max_accel * DT)
+    assert math.isclose(command.omega, 1.0 - p.max_alpha * DT)
+
+
+def test_path_tracking_baseline_does_not_avoid_and_fails_blocked():
+    p = params()
+    obstacle = circle((3.0, 0.0), 0.4)
+    controller = make_controller('astar-track', p)
+    run = simulate(controller, (0.0, 0.0, 0.0), [6.0, 0.0], obstacle, duration=30.0, block=True)
+    assert run.blocked_steps > 0                                    # it drove into it
+    assert run.final.status == 'failed' and 'blocked' in run.final.reason
+    assert 'arrived' not in run.statuses
+    assert_limits(run, p)
+
+
+# -- moving obstacles -----------------------------------------------------------------------------
+
+#: A person crossing the straight path, timed to meet the robot.
+CROSSER = Mover(start=(5.0, -4.5), velocity=(0.0, 0.8), radius=0.3)
+
+
+def test_crossing_moving_obstacle_is_avoided_with_prediction():
+    p = params(prediction_horizon=2.0)
+    run = simulate(make_controller('fusion', p), (0.0, 0.0, 0.0), [10.0, 0.0], movers=[CROSSER],
+                   duration=40.0)
+    off = simulate(make_controller('fusion', params(prediction_horizon=0.0)), (0.0, 0.0, 0.0),
+                   [10.0, 0.0], movers=[CROSSER], duration=40.0)
+    assert reached(run)
+    assert run.min_mover_clearance > 0.1      # centre distance > robot radius + obstacle radius
+    assert run.min_mover_clearance > off.min_mover_clearance
+    assert_limits(run, p)
+
+
+def test_a_person_walking_at_the_robot_is_avoided():
+    p = params()
+    head_on = Mover(start=(8.0, 0.1), velocity=(-0.4, 0.0), radius=0.3)
+    run = simulate(make_controller('fusion', p), (0.0, 0.0, 0.0), [10.0, 0.0], movers=[head_on],
+                   duration=40.0)
+    assert reached(run)
+    assert run.min_mover_clearance > 0
+    assert_limits(run, p)
+
+
+# -- replanning ------------------------------------------------------------
+
+def test_fusion_asks_for_a_new_plan_when_the_path_is_blocked():
+    """A wall the map did not show closes the planned corridor; the replanner knows a way round."""
+    p = params()
+    blocker = wall((4.0, -1.2), (4.0, 1.2))
+    detour = np.array([[0.0, 0.0], [2.0, 0.0], [2.5, 2.5], [5.5, 2.5], [8.0, 0.0]])
+    calls = []
+
+    def replan(start, goal, seen):
+        calls.append(len(seen))
+        assert np.allclose(goal, [8.0, 0.0])
+        return np.vstack([start, detour[2:]]), np.vstack([start, detour[2:]])
+
+    controller = make_controller('fusion', p, replan=replan)
+    run = simulate(controller, (0.0, 0.0, 0.0), [8.0, 0.0], blocker, duration=60.0)
+    assert reached(run), run.final
+    assert calls and calls[0] > 0                     # the blocking points were remembered
+    assert controller.replans >= 1 and controller.stuck_events >= 1
+    assert run.min_static_clearance > 0
+
+
+def test_failed_replanning_falls_back_to_boundary_following():
+    p = params()
+    calls = []
+
+    def replan(start, goal, seen):
+        calls.append(1)
+        raise NoValidPathCouldBeFound('no way in this test')
+
+    controller = make_controller('fusion', p, replan=replan)
+    run = simulate(controller, (0.0, 0.0, 0.0), GOAL_U, SCENE_U, duration=90.0)
+    assert reached(run), run.final
+    assert calls and controller.replans == 0 and controller.stuck_events >= 1
+
+
+def test_grid_replanner_plans_around_seen_points():
+    occupied = np.zeros((40, 60), bool)
+    grid = GridMap(occupied, 0.1)
+    replanner = GridReplanner(grid)
+    seen = wall((3.0, 0.5), (3.0, 3.5), spacing=0.05)
+    path, key_nodes = replanner((1.0, 2.0), (5.0, 2.0), seen)
+    assert np.allclose(path[0], [1.0, 2.0], atol=0.1)
+    assert np.allclose(path[-1], [5.0, 2.0], atol=0.1)
+    crossing = path[np.argmin(np.abs(path[:, 0] - 3.0))]
+    assert crossing[1] < 0.5 or crossing[1] > 3.5           # went round the seen wall
+    assert len(key_nodes) >= 2
+    with pytest.raises(InvalidInput):
+        GridReplanner(occupied)
+
+
+# -- interface and validation ------------------------------------------------------------
+
+def test_make_controller_names_and_refusals():
+    for name in CONTROLLER_NAMES:
+        controller = make_controller(name, FollowerParams())
+        assert controller.stuck_events == 0
+    with pytest.raises(InvalidInput):
+        make_controller('dwa', FollowerParams())
+    with pytest.raises(InvalidInput):
+        make_controller('fusion', {'max_speed': 1.0})
+    with pytest.raises(InvalidInput):
+        FieldFollower(FollowerParams(), replan='not callable')
+
+
+@pytest.mark.parametrize('changes', [
+    {'max_speed': 0.0}, {'max_accel': -1.0}, {'max_omega': float('nan')}, {'goal_tolerance': 0},
+    {'control_period': 0.0}, {'robot_radius': -0.1}, {'prediction_horizon': -1.0},
+    {'stuck_window': float('inf')}, {'apf': 'default'},
+])
+def test_bad_follower_params_are_refused(changes):
+    with pytest.raises(InvalidInput):
+        FollowerParams(**changes)
+
+
+def test_follower_radius_is_the_field_radius():
+    p = FollowerParams(apf=ApfParams(robot_radius=0.0), robot_radius=0.35)
+    assert p.apf.robot_radius == 0.35
+
+
+@pytest.mark.parametrize('fields', [
+    dict(pose=np.array([0.0, 0.0])),
+    dict(pose=np.array([0.0, float('nan'), 0.0])),
+    dict(velocity=np.array([0.0])),
+    dict(obstacle_points=np.zeros((3, 3))),
+    dict(tracked=np.zeros((2, 4))),
+    dict(tracked=np.array([[0.0, 0.0, 0.0, 0.0, -1.0]])),
+    dict(time=float('nan')),
+])
+def test_bad_observations_are_refused(fields):
+    base = dict(pose=np.zeros(3), velocity=np.zeros(2), obstacle_points=np.zeros((0, 2)),
+                tracked=np.zeros((0, 5)), time=0.0)
+    base.update(fields)
+    with pytest.raises(InvalidInput):
+        Observation(**base)
+
+
+def test_bad_paths_are_refused():
+    controller = make_controller('fusion', FollowerParams())
+    with pytest.raises(InvalidInput):
+        controller.set_path(np.zeros((0, 2)), np.zeros((1, 2)))
+    with pytest.raises(InvalidInput):
+        controller.set_path(np.zeros((3, 2)), np.array([[float('nan'), 0.0]]))
+
+
+def test_non_finite_scan_points_are_ignored():
+    p = params()
+    controller = make_controller('fusion', p)
+    controller.set_path(np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([[0.0, 0.0], [3.0, 0.0]]))
+    points = np.array([[np.inf, 0.0], [1.0, np.nan], [10.0, 10.0]])
+    obs = Observation(np.zeros(3), np.zeros(2), points, np.zeros((0, 5)), 0.0)
+    command = controller.compute(obs)
+    assert command.status == 'moving' and np.isfinite(command.v) and command.v > 0
+    assert command.local_plan.shape[1] == 2 and np.all(np.isfinite(command.local_plan))
+
+
+def test_same_inputs_same_commands():
+    p = params()
+    first = simulate(make_controller('fusion', p), (0.0, 0.0, 0.0), GOAL_U, SCENE_U,
+                     movers=[CROSSER], duration=20.0)
+    second = simulate(make_controller('fusion', p), (0.0, 0.0, 0.0), GOAL_U, SCENE_U,
+                      movers=[CROSSER], duration=20.0)
+    assert [(c.v, c.omega, c.status) for c in first.commands] == \
+        [(c.v, c.omega, c.status) for c in second.commands]
+
+
+def test_thinning_keeps_one_point_per_square():
+    points = np.random.default_rng(0).uniform(0.0, 1.0, (500, 2))
+    thinned = thin_points(points, 0.25)
+    assert len(thinned) <= 16
+    cells = np.floor(thinned / 0.25)
+    assert len(np.unique(cells, axis=0)) == len(thinned)
+
+
+def test_compute_is_fast_with_a_720_beam_scan_and_20_people():
+    rng = np.random.default_rng(3)
+    angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
+    ranges = rng.uniform(0.5, 4.0, 720)
+    scan = np.c_[ranges * np.cos(angles), ranges * np.sin(angles)] + [5.0, 5.0]
+    tracked = np.c_[rng.uniform(2.0, 8.0, (20, 2)), rng.uniform(-0.4, 0.4, (20, 2)),
+                    np.full(20, 0.3)]
+    controller = make_controller('fusion', FollowerParams())
+    keys = np.array([[5.0, 5.0], [7.0, 6.0], [9.0, 9.0]])
+    controller.set_path(keys, keys)
+    observations = [Observation(np.array([5.0, 5.0, 0.3]), np.array([0.5, 0.1]), scan, tracked,
+                                0.05 * i) for i in range(100)]
+    controller.compute(observations[0])
+    start = time.perf_counter()
+    for obs in observations[1:]:
+        controller.compute(obs)
+    per_step = (time.perf_counter() - start) / (len(observations) - 1)
+    assert per_step < 5e-3, f'{per_step * 1e3:.2f} ms per compute()'
