@@ -142,7 +142,7 @@ def assert_limits(run, p):
     for command, (v0, w0) in zip(run.commands, run.measured):
         assert isinstance(command, Command) and command.status in STATUSES
         assert math.isfinite(command.v) and math.isfinite(command.omega)
-        assert abs(command.v) <= p.max_speed + EPS
+        assert -EPS <= command.v <= p.max_speed + EPS
         assert abs(command.omega) <= p.max_omega + EPS
         assert abs(command.v - v0) <= dv + EPS
         assert abs(command.omega - w0) <= dw + EPS

@@ -112,20 +112,6 @@ PREDICTION_SAMPLES = 5
 #: the robot, not swamp every other force with a near-infinite one.
 PREDICTED_MIN_GAP = 0.1
 
-#: A tracked obstacle closing in (faster than EVADE_MIN_CLOSING [m/s]) within
-#: this boundary-to-boundary gap [m] is a threat: if the way out is behind,
-#: the robot backs away instead of turning round first.
-EVADE_GAP = 0.8
-EVADE_MIN_CLOSING = 0.05
-
-#: Lane half-width margin [m] and gain of the sidestep off an oncoming tracked
-#: obstacle's lane (see ``FieldFollower._sidestep``).
-SIDESTEP_MARGIN = 0.3
-SIDESTEP_GAIN = 2.0
-
-#: Backing away needs at least this much free travel [m] behind the robot.
-EVADE_REAR_GAP = 0.5
-
 #: Weight of the last predicted position relative to the current one (linear
 #: in between): the farther future is less certain.
 FAR_PREDICTION_WEIGHT = 0.5
@@ -554,8 +540,6 @@ class _Scene:
     circle_centres: np.ndarray    # (K, 2) current tracked centres [m]
     circle_radii: np.ndarray      # (K,) [m]
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
-    threat: bool                  # a tracked obstacle is closing in within EVADE_GAP
-    sidestep: np.ndarray          # (2,) push off the lanes of oncoming tracked obstacles
 
 
 @dataclass
@@ -639,7 +623,7 @@ class _Base:
         dw = p.max_alpha * p.control_period
         v = min(max(v_des, v0 - dv), v0 + dv)
         w = min(max(omega_des, w0 - dw), w0 + dw)
-        v = min(max(v, -p.max_speed), p.max_speed)
+        v = min(max(v, 0.0), p.max_speed)
         w = min(max(w, -p.max_omega), p.max_omega)
         return float(v), float(w)
 
@@ -654,20 +638,15 @@ class _Base:
         LOGGER.warning('controller failed: %s', reason)
         return self._stop(obs, 'failed', reason, sub_goal)
 
-    def _steer(self, heading, v_cap, obs, reverse=False):
-        """Heading control toward ``heading`` [rad] at a speed of at most ``v_cap``.
-
-        Forward by default; with ``reverse`` the robot's back is turned
-        toward ``heading`` and it drives backward.
-        """
+    def _steer(self, heading, v_cap, obs):
+        """Heading control toward ``heading`` [rad] with forward speed at most ``v_cap``."""
         p = self.params
-        facing = obs.pose[2] + (math.pi if reverse else 0.0)
-        error = wrap_angle(heading - facing)
+        error = wrap_angle(heading - obs.pose[2])
         turn = min(p.heading_gain * abs(error), math.sqrt(2.0 * p.max_alpha * abs(error)),
                    p.max_omega)
         omega = math.copysign(turn, error)
         v = min(p.max_speed, v_cap) * max(0.0, math.cos(error))**2
-        return self._limit(-v if reverse else v, omega, obs)
+        return self._limit(v, omega, obs)
 
 
 # -- field followers ----------------------------------------------------------------
@@ -804,56 +783,8 @@ class FieldFollower(_Base):
             if np.any(ahead):
                 gap = np.hypot(d[ahead, 0], d[ahead, 1]) - radii[ahead] - p.robot_radius
                 nearest = min(nearest, float(np.min(gap)))
-        threat = False
-        if len(tracked):
-            offset = q - centres                                    # obstacle -> robot
-            distance = np.hypot(offset[:, 0], offset[:, 1])
-            closing = np.einsum('ij,ij->i', velocities - own, offset) / np.maximum(
-                distance, apf.DIRECTION_EPS)
-            gap = distance - radii - p.robot_radius
-            in_front = -offset @ heading > 0.0
-            threat = bool(np.any((gap < EVADE_GAP) & (closing > EVADE_MIN_CLOSING) & in_front))
-        sidestep = self._sidestep(offset, velocities, radii) if len(tracked) else np.zeros(2)
         return _Scene(field_points, field_velocities, field_weights, points, centres, radii,
-                      nearest, threat, sidestep)
-
-    def _sidestep(self, offset, velocities, radii):
-        """Push off the lane of tracked obstacles that will run into the robot.
-
-        For each obstacle moving faster than EVADE_MIN_CLOSING, the robot is
-        in its lane when its distance to the line the obstacle moves along is
-        below ``radius + robot_radius + SIDESTEP_MARGIN`` and the obstacle
-        will get there within ``prediction_horizon``. The push points away
-        from that line (to the obstacle's left when exactly on it), grows as
-        the lane's centre and the time of arrival get closer, and is scaled
-        to SIDESTEP_GAIN times the largest attraction ``k_att * lookahead``.
-        People keep walking; stepping out of their lane beats braking in it.
-        """
-        p = self.params
-        horizon = p.prediction_horizon if self.predict else 0.0
-        if horizon <= 0:
-            return np.zeros(2)
-        speed = np.hypot(velocities[:, 0], velocities[:, 1])
-        moving = speed > EVADE_MIN_CLOSING
-        if not np.any(moving):
-            return np.zeros(2)
-        offset, velocities, radii, speed = offset[moving], velocities[moving], radii[moving], \
-            speed[moving]
-        lane = velocities / speed[:, None]
-        along = np.einsum('ij,ij->i', offset, lane)            # robot ahead of it when > 0
-        across = offset - along[:, None] * lane
-        distance = np.hypot(across[:, 0], across[:, 1])
-        width = radii + p.robot_radius + SIDESTEP_MARGIN
-        arrival = along / speed
-        active = (along > -radii) & (distance < width) & (arrival < horizon)
-        if not np.any(active):
-            return np.zeros(2)
-        left = np.c_[-lane[:, 1], lane[:, 0]]
-        side = np.where((distance > apf.DIRECTION_EPS)[:, None],
-                        across / np.maximum(distance, apf.DIRECTION_EPS)[:, None], left)
-        urgency = (1.0 - distance / width) * (1.0 - np.clip(arrival, 0.0, horizon) / horizon)
-        gain = SIDESTEP_GAIN * p.apf.k_att * p.lookahead
-        return gain * (np.where(active, urgency, 0.0) @ side)
+                      nearest)
 
     def _remember(self, obs, scene, force=False):
         """Add this step's static points to the replanning memory (once per MEMORY_PERIOD)."""
@@ -915,7 +846,6 @@ class FieldFollower(_Base):
             force = force + apf.velocity_repulsion(                                 # eq. (17)
                 q, robot_velocity, scene.field_points, scene.field_velocities, ap,
                 scene.field_weights, check=False)
-            force = force + scene.sidestep                                         # beyond the paper
         return force
 
     def _rollout(self, q, target, scene, first_direction):
@@ -1197,28 +1127,15 @@ class FieldFollower(_Base):
         if direction is None:  # an exact minimum: stop; the stuck detector takes over
             v, w = self._limit(0.0, 0.0, obs)
             return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
-        heading = math.atan2(direction[1], direction[0])
-        # evasion: with a moving obstacle closing in and the way out behind,
-        # back away at once instead of first turning round in its path
-        reverse = scene.threat and abs(wrap_angle(heading - yaw)) > 0.5 * math.pi
+        step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)             # eq. (18)
+        v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
+                    p.approach_gain * goal_distance)
         clearance = p.robot_radius + p.safety_distance
-        drive_pose = np.array([q[0], q[1], yaw + math.pi]) if reverse else obs.pose
         gap = min(
-            _front_gap(drive_pose, scene.all_points, np.zeros(len(scene.all_points)), clearance),
-            _front_gap(drive_pose, scene.circle_centres, scene.circle_radii, clearance))
-        if reverse and gap < EVADE_REAR_GAP:  # no room behind: turn round instead
-            reverse = False
-            drive_pose = obs.pose
-            gap = min(
-                _front_gap(drive_pose, scene.all_points, np.zeros(len(scene.all_points)),
-                           clearance),
-                _front_gap(drive_pose, scene.circle_centres, scene.circle_radii, clearance))
-        v_cap = _braking_speed(gap, p.max_accel, p.control_period)
-        if not reverse:
-            step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)         # eq. (18)
-            v_cap = min(v_cap, p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
-                        p.approach_gain * goal_distance)
-        v, w = self._steer(heading, v_cap, obs, reverse)
+            _front_gap(obs.pose, scene.all_points, np.zeros(len(scene.all_points)), clearance),
+            _front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
+        v_cap = min(v_cap, _braking_speed(gap, p.max_accel, p.control_period))
+        v, w = self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
         return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
 
 

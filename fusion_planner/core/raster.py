@@ -91,6 +91,8 @@ def _clip(ga, gb, shape):
     """
     lo = np.array([-CLIP_MARGIN_CELLS, -CLIP_MARGIN_CELLS], float)
     hi = np.array([shape[1] + CLIP_MARGIN_CELLS, shape[0] + CLIP_MARGIN_CELLS], float)
+    if len(ga) and min(ga.min(), gb.min()) >= lo[0] and (np.maximum(ga, gb) <= hi).all():
+        return ga, gb, np.ones(len(ga), bool)  # every end inside: nothing to clip
     d = gb - ga
     t0 = np.zeros(len(ga))
     t1 = np.ones(len(ga))
@@ -159,13 +161,18 @@ def supercover_grid(ga, gb, shape):
     return _cells_of_points(p), np.tile(owner, 4)
 
 
-def _supercover_points(ga, gb, shape):
+def _supercover_points(ga, gb, shape, max_crossings=None):
     """The cut points and ends of many segments, in groups.
 
     Returns two lists of the same length: arrays of grid points ``(col,
     row)`` shape (P, 2), and the owning segment of each point, shape (P,),
     non-decreasing within each group (the first group is the clipped starts,
     the second the clipped ends, then the crossings of each axis).
+
+    With ``max_crossings``, only the crossings of at most that many grid
+    lines per axis are kept, those nearest the start: the same points (the
+    same arithmetic) as without the limit, so their cells are a subset of
+    the segment's supercover.
     """
     ga = np.asarray(ga, dtype=float).reshape(-1, 2)
     gb = np.asarray(gb, dtype=float).reshape(-1, 2)
@@ -183,11 +190,18 @@ def _supercover_points(ga, gb, shape):
     owners = [every, every]
     for axis in (0, 1):
         n = count[:, axis]
+        skip = np.zeros(m, np.int64)
+        if max_crossings is not None:
+            # Keep the lines nearest the start: the lowest ones when the
+            # segment runs up this axis, the highest ones when it runs down.
+            kept = np.minimum(n, max_crossings)
+            skip = np.where(d[:, axis] < 0, n - kept, 0)
+            n = kept
         total = int(n.sum())
         if total == 0:
             continue
         seg = np.repeat(every, n)
-        local = np.arange(total) - np.repeat(np.cumsum(n) - n, n)
+        local = np.arange(total) - np.repeat(np.cumsum(n) - n, n) + skip[seg]
         k = first[seg, axis] + local
         t = (k - ca[seg, axis]) / d[seg, axis]
         p = ca[seg] + t[:, None] * d[seg]
@@ -197,7 +211,7 @@ def _supercover_points(ga, gb, shape):
     return points, owners
 
 
-def grid_segments_clearance(grid, ga, gb):
+def grid_segments_clearance(grid, ga, gb, max_crossings=None):
     """:func:`segments_clearance` for segments in continuous grid coordinates.
 
     Parameters
@@ -206,12 +220,18 @@ def grid_segments_clearance(grid, ga, gb):
     ga, gb : ndarray, float64, shape (M, 2)
         Segment ends ``(col, row)`` in cell units
         (:meth:`GridMap.world_to_grid`), finite; not validated.
+    max_crossings : int, optional
+        Look only at the cells of both ends and of the first
+        ``max_crossings`` grid lines crossed per axis from the start: a
+        subset of the supercover, so the result is an upper bound of the
+        segment's clearance, exact when the segment crosses no more lines.
+        A cheap test that rules long segments out.
 
     Returns
     -------
     ndarray, float64, shape (M,)
-        Smallest :attr:`GridMap.clearance` over each segment's supercover;
-        0.0 where a touched cell lies outside the grid.
+        Smallest :attr:`GridMap.clearance` over each segment's supercover
+        (or its subset); 0.0 where a touched cell lies outside the grid.
 
     Notes
     -----
@@ -224,7 +244,7 @@ def grid_segments_clearance(grid, ga, gb):
     out = np.full(m, np.inf)
     if m == 0:
         return out
-    points, owners = _supercover_points(ga, gb, grid.shape)
+    points, owners = _supercover_points(ga, gb, grid.shape, max_crossings)
     cells = _cells_of_points(np.concatenate(points))
     rows, cols = cells[:, 0], cells[:, 1]
     height, width = grid.shape

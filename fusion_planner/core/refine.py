@@ -44,6 +44,9 @@ MAX_SHRINK_STEPS = 6
 MAX_SAMPLES_PER_PIECE = 100_000
 #: Points closer than this [m] are the same point.
 SAME_POINT_M = 1e-12
+#: Grid lines per axis, from the anchor, that a shortcut probe is first
+#: checked over before it is checked whole (see _farthest_safe).
+PROBE_PREFIX_CROSSINGS = 8
 
 
 def _is_finite_number(value):
@@ -116,7 +119,8 @@ def _farthest_safe(grid, gpts, i, r, needed):
     ``gpts`` are the nodes in grid coordinates. ``needed[k]`` is the
     clearance [m] the segment ``i -> i + 1 + k`` must keep. Assumes the
     step ``i -> i + 1`` is safe. Probes ``i + 1, i + 2, i + 4, ...`` and the
-    last node in one batch, takes the farthest safe probe, then bisects
+    last node in one batch (near the anchor first, then whole), takes the
+    farthest safe probe, then bisects
     towards the next (unsafe) probe, two bisection steps per batch. The
     result ``j`` has a safe segment ``i -> j`` and is never before the end
     of the run of consecutive nodes reachable from ``i``.
@@ -130,10 +134,22 @@ def _farthest_safe(grid, gpts, i, r, needed):
     if probes[-1] != n - 1:
         probes.append(n - 1)
     probes = np.array(probes)
-    clearance = raster.grid_segments_clearance(
-        grid, np.repeat(gpts[i:i + 1], len(probes), axis=0), gpts[probes])
-    ok = _is_safe(clearance, r, needed[probes - i - 1])
-    ok[0] = True
+    starts = np.repeat(gpts[i:i + 1], len(probes), axis=0)
+    # First the cells near the anchor only (a subset of each probe's cells):
+    # on a cluttered map most long probes fail there already. Only the
+    # probes that pass are tested whole, so the outcome is the same.
+    needs = needed[probes - i - 1]
+    if probes[-1] - i > 2 * PROBE_PREFIX_CROSSINGS:
+        ok = _is_safe(raster.grid_segments_clearance(
+            grid, starts, gpts[probes], max_crossings=PROBE_PREFIX_CROSSINGS), r, needs)
+        ok[0] = True
+        whole = np.flatnonzero(ok[1:]) + 1
+    else:
+        ok = np.ones(len(probes), bool)
+        whole = np.arange(1, len(probes))
+    if len(whole):
+        ok[whole] = _is_safe(raster.grid_segments_clearance(grid, starts[whole],
+                                                            gpts[probes[whole]]), r, needs[whole])
     best = int(np.flatnonzero(ok)[-1])
     if best == len(probes) - 1:
         return int(probes[best])
