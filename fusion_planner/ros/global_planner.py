@@ -39,11 +39,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
@@ -58,6 +56,7 @@ from fusion_planner.core.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'global_planner'
 
@@ -495,21 +494,7 @@ def _traversable_at(grid, cells, radius):
 
 def main(args=None):
     """Run the global planner node until Ctrl-C or shutdown; returns the exit code."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GlobalPlannerNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except InvalidInput as err:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {err}')
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(GlobalPlannerNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

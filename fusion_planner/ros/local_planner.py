@@ -49,10 +49,8 @@ from dataclasses import field as dataclass_field
 from dataclasses import fields, make_dataclass
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry, Path
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
@@ -64,6 +62,7 @@ from fusion_planner.core.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'local_planner'
 
@@ -668,21 +667,7 @@ class LocalPlannerNode(Node):
 
 def main(args=None):
     """Run the local planner node until Ctrl-C or shutdown; returns the exit code."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = LocalPlannerNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except InvalidInput as err:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {err}')
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(LocalPlannerNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':

@@ -54,11 +54,9 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import PoseStamped, Twist
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -71,6 +69,7 @@ from fusion_planner.core.world import World
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'simulator'
 PACKAGE = 'fusion_planner'
@@ -500,21 +499,7 @@ class SimulatorNode(Node):
 
 def main(args=None):
     """Run the simulator node until Ctrl-C or shutdown; returns the exit code."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimulatorNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except InvalidInput as err:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'cannot start: {err}')
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SimulatorNode, NODE_NAME, args)
 
 
 if __name__ == '__main__':
