@@ -235,7 +235,10 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
         raise InvalidInput(
             f'unknown controller {controller_name!r}; choose one of {", ".join(CONTROLLERS)}')
     params = follower_params(scenario)
-    controller = follow.make_controller(controller_name, params)
+    # Fusion may replan on the known map plus the obstacles it has seen when
+    # its escape toward the next key node fails (see follow.GridReplanner).
+    controller = follow.make_controller(
+        controller_name, params, replan=follow.GridReplanner(scenario.grid, scenario.planner))
     seed = scenario.seed if seed is None else int(seed)
     start = np.asarray(scenario.start, float)
     goal = np.asarray(scenario.goal, float)
