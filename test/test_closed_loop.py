@@ -1,6 +1,6 @@
 """Closed loop over real DDS: simulator, global_planner and local_planner together.
 
-Launch-free: the nodes run in a MultiThreadedExecutor of this process, or as
+Launch-free: the nodes run in a SingleThreadedExecutor of this process, or as
 processes started with ``--ros-args --params-file config/params.yaml``; a
 monitor node in this process watches ``clock``, ``odom``, ``plan`` and
 ``diagnostics``. Every wait is bounded. The simulator runs faster than real
@@ -31,7 +31,7 @@ import yaml
 rclpy = pytest.importorskip('rclpy')
 
 from geometry_msgs.msg import PoseStamped  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
 from fusion_planner.cli import demo_command as demo  # noqa: E402
@@ -122,7 +122,7 @@ class Run:
         self.monitor = Node('test_monitor', context=context, cli_args=cli_args)
         self.nodes.append(self.monitor)
         demo.attach_recorder(self.monitor, self.recorder)
-        self.executor = MultiThreadedExecutor(context=context)
+        self.executor = SingleThreadedExecutor(context=context)
         if in_process:
             self.nodes += demo.make_nodes(context, self.params, ros_args)
         else:

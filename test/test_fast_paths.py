@@ -99,7 +99,8 @@ def _check_local_clearance(occupied, resolution):
     assert local._clearance is None  # the whole map was not needed
     assert np.array_equal(got, whole[cells[order, 0], cells[order, 1]])
     path = local.world_of(cells[order][:7])
-    assert metrics.min_clearance(local, path) == metrics.min_clearance(GridMap(occupied, resolution), path)
+    whole_map = GridMap(occupied, resolution)
+    assert metrics.min_clearance(local, path) == metrics.min_clearance(whole_map, path)
 
 
 @contextlib.contextmanager
@@ -133,8 +134,8 @@ def _check_wide_map():
 @SETTINGS
 @given(occupied=occupancy(max_side=24), gamma=st.sampled_from((0.0, 0.2, 0.5)),
        data=st.data())
-def test_variable_neighbourhood_costs_the_same_as_the_full_one(n, heuristic, occupied, gamma,
-                                                              data):
+def test_variable_neighbourhood_costs_the_same_as_the_full_one(
+        n, heuristic, occupied, gamma, data):
     free = ~occupied
     cells = np.argwhere(free)
     if len(cells) < 2:

@@ -22,7 +22,7 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import Twist, TwistStamped  # noqa: E402
 from nav_msgs.msg import Odometry, Path  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
@@ -70,7 +70,7 @@ class FakeRobot:
         self.statuses = []  # key values of the local planner's diagnostics
         self.node.create_subscription(DiagnosticArray, 'diagnostics', self._on_diagnostics, 50)
         self.node.create_timer(1.0 / SENSOR_RATE_HZ, self._publish_sensors)
-        self.executor = MultiThreadedExecutor(context=context)
+        self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.planner)
         self.spinner = Spinner(self.executor)
