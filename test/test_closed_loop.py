@@ -79,6 +79,20 @@ def write_scenario(folder, name, start, goal, unknown=(), moving=(), map_name=No
     return path
 
 
+def write_two_way_map(folder):
+    """A 10 m x 6 m room at 0.1 m around a 4 m x 3.6 m block: a 1 m way below it, 1.4 m above."""
+    occupied = np.zeros((60, 100), dtype=bool)
+    occupied[10:46, 30:70] = True
+    folder.mkdir(parents=True, exist_ok=True)
+    save_map_server(GridMap(occupied, resolution=0.1), folder / 'two_ways.yaml')
+    return 'two_ways.yaml'
+
+
+#: A wall the map does not show, closing the shorter way (above the block).
+UPPER_WAY_CLOSED = {'rectangle': {'min': [4.8, 4.6], 'max': [5.2, 6.0]}}
+#: Wall time budget of a run that has to turn back [s].
+DETOUR_WALL_LIMIT_S = 150.0
+
 #: An obstacle the map does not show, on the straight line from the start to the wall's end.
 UNKNOWN_BOX = {'circle': {'center': [3.0, 1.6], 'radius': 0.3}}
 #: People: one walking across the plan's second half, one bouncing around the first.
@@ -226,9 +240,9 @@ def test_three_nodes_in_one_executor_reach_the_goal_without_collision(context, s
         failure = run.wait_arrival()
         status = assert_arrived_safely(run, failure)
         report('one executor', run, status)
-        # The plan was made on the known map: it runs into the unknown box,
-        # which the robot passed around (positive clearance above).
-        plan = run.recorder.plan
+        # The first plan was made on the known map: it runs into the unknown
+        # box, which the robot passed around (positive clearance above).
+        plan = run.recorder.plans[0]
         box = np.array(UNKNOWN_BOX['circle']['center'])
         assert np.min(np.hypot(*(plan - box).T)) < UNKNOWN_BOX['circle']['radius'] + 0.2
         # The moving obstacles really moved (each went at least 0.5 m from its start).
@@ -283,6 +297,27 @@ def test_a_new_goal_in_mid_run_reroutes_the_robot(context, tmp_path):
         assert math.hypot(x - second_goal[0], y - second_goal[1]) <= run.recorder.arrival_radius
         assert math.hypot(x - first_goal[0], y - first_goal[1]) > 5.0
         assert int(run.final_status()['collisions']) == 0
+    finally:
+        run.close()
+
+
+def test_a_way_closed_by_an_unknown_wall_is_learnt_and_the_robot_arrives_by_the_other(
+        context, tmp_path):
+    path = write_scenario(tmp_path, 'closed_way', start=(1.05, 3.05, 0.0), goal=(9.05, 3.05),
+                          unknown=[UPPER_WAY_CLOSED], map_name=write_two_way_map(tmp_path))
+    run = Run(context, path)
+    try:
+        failure = run.wait_arrival(wall_limit_s=DETOUR_WALL_LIMIT_S)
+        status = assert_arrived_safely(run, failure)
+        report('closed way', run, status)
+        plans = list(run.recorder.plans)
+        # The first plan takes the shorter way above the block, into the unknown wall ...
+        assert plans[0][:, 1].max() > 4.6, 'the first plan does not use the upper way'
+        # ... the scans revealed it, and the last plan and the robot pass below the block.
+        assert int(run.recorder.planner_status['scan_obstacle_cells']) > 0
+        for name, points in (('last plan', plans[-1]), ('robot', np.array(run.recorder.poses))):
+            beside_block = points[(points[:, 0] > 3.5) & (points[:, 0] < 6.5), 1]
+            assert (beside_block < 1.0).any(), f'{name} did not pass below the block'
     finally:
         run.close()
 

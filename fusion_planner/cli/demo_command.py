@@ -224,7 +224,9 @@ class RunRecorder:
         self.arrived_wall = None  # wall time the arrival was seen
         self.poses = []        # (x, y, yaw)
         self.tracks = []       # (K, 2) per obstacle message
-        self.plan = None
+        self.plan = None       # the latest non-empty plan, (N, 2)
+        self.plans = []        # every non-empty plan, oldest first
+        self.planner_status = {}
         self.local_status = {}
         self.sim_status = {}
         self.sim_status_wall = 0.0
@@ -261,6 +263,7 @@ class RunRecorder:
         if len(msg.poses):
             with self._lock:
                 self.plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
+                self.plans.append(self.plan)
 
     def on_diagnostics(self, msg):
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9  # sender's clock
@@ -275,6 +278,8 @@ class RunRecorder:
                         self.arrived_wall = time.monotonic()
                     if values.get('status') == 'failed':
                         self.failure = f'local planner failed: {values.get("last_error", "")}'
+                elif status.name.endswith('/global_planner'):
+                    self.planner_status = values
                 elif status.name.endswith('/simulator'):
                     self.sim_status = values
                     self.sim_status_wall = time.monotonic()

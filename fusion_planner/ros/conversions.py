@@ -23,8 +23,8 @@ Conventions:
   refused; one whose norm lies within :data:`QUATERNION_NORM_TOLERANCE` of 1
   is normalised; anything further from unit length is refused as corrupt.
 - An empty ``nav_msgs/Path`` is how the global planner says "no plan" (it
-  publishes one when planning fails so followers stop); :func:`path_from_msg`
-  refuses it, so a follower checks ``len(msg.poses) == 0`` first.
+  publishes one when planning fails so followers stop): :func:`plan_from_msg`
+  gives None for it, :func:`path_from_msg` refuses it.
 """
 
 import array
@@ -566,6 +566,33 @@ def path_from_msg(msg, frame_id, what='path'):
     return raster.as_polyline(pts, what)
 
 
+def plan_from_msg(msg, frame_id, what='plan'):
+    """The points of a global plan, or None for the empty plan that means "stop".
+
+    Parameters
+    ----------
+    msg : nav_msgs.msg.Path
+    frame_id : str
+        Expected frame (see :func:`check_frame`), checked for an empty plan too.
+    what : str
+        Name used in the error sentence.
+
+    Returns
+    -------
+    ndarray, float64, shape (N, 2) or None
+        As :func:`path_from_msg`; None when ``msg`` has no poses.
+
+    Raises
+    ------
+    InvalidInput
+        Wrong frame, NaN or infinite coordinates.
+    """
+    if len(msg.poses) == 0:
+        check_frame(msg.header.frame_id, frame_id, what)
+        return None
+    return path_from_msg(msg, frame_id, what)
+
+
 # -- scans --------------------------------------------------------------------
 
 def scan_to_points(msg, robot_pose, frame_id=None, what='scan'):
@@ -594,9 +621,45 @@ def scan_to_points(msg, robot_pose, frame_id=None, what='scan'):
     Raises
     ------
     InvalidInput
+        As :func:`scan_to_rays`.
+    """
+    ends, hit = scan_to_rays(msg, robot_pose, frame_id, what)
+    return ends[hit]
+
+
+def scan_to_rays(msg, robot_pose, frame_id=None, what='scan'):
+    """Where each usable beam of a ``sensor_msgs/LaserScan`` ended, in the map frame.
+
+    Parameters
+    ----------
+    msg : sensor_msgs.msg.LaserScan
+        Beams in the robot frame (the sensor at the robot's origin facing
+        forward; no tf2 lookup).
+    robot_pose : tuple of float
+        ``(x, y, yaw)`` [m, m, rad] of the robot in the map frame.
+    frame_id : str, optional
+        When given, the scan's frame must be this (or empty).
+    what : str
+        Name used in the error sentence.
+
+    Returns
+    -------
+    ends : ndarray, float64, shape (M, 2)
+        ``(x, y)`` [m], map frame: the return of a beam with a range in
+        ``[range_min, range_max)``, or the point at ``range_max`` of a beam
+        with no return (``+inf`` by REP-117, or a range at or beyond
+        ``range_max``). NaN, ``-inf`` and too-short ranges are dropped, as
+        is a beam whose end overflows.
+    hit : ndarray, bool, shape (M,)
+        Whether the beam ended on a return.
+
+    Raises
+    ------
+    InvalidInput
         Non-finite pose or ``angle_min``; ``angle_increment`` not a positive
         finite number; ``range_min``/``range_max`` not finite,
-        ``range_min < 0`` or ``range_max <= range_min``; wrong frame.
+        ``range_min < 0`` or ``range_max <= range_min``; ``ranges`` not a
+        flat sequence; wrong frame.
 
     Notes
     -----
@@ -621,14 +684,17 @@ def scan_to_points(msg, robot_pose, frame_id=None, what='scan'):
     if ranges.ndim != 1:
         raise InvalidInput(f'{what} ranges must be a flat sequence of numbers')
     with np.errstate(invalid='ignore'):
-        keep = np.isfinite(ranges) & (ranges >= range_min) & (ranges < range_max)
-    index = np.flatnonzero(keep)
-    r = ranges[index]
+        usable = ~np.isnan(ranges) & (ranges >= range_min)   # drops NaN, -inf, too short
+        hit_all = usable & (ranges < range_max)
+    index = np.flatnonzero(usable)
+    hit = hit_all[index]
+    r = np.where(hit, ranges[index], range_max)
     with np.errstate(invalid='ignore', over='ignore'):
         angles = yaw + angle_min + index * increment
-        pts = np.column_stack([x + r * np.cos(angles), y + r * np.sin(angles)])
+        ends = np.column_stack([x + r * np.cos(angles), y + r * np.sin(angles)])
     # Absurd angle or pose magnitudes can overflow: such beams are dropped too.
-    return pts[np.isfinite(pts).all(axis=1)]
+    finite = np.isfinite(ends).all(axis=1)
+    return ends[finite], hit[finite]
 
 
 # -- obstacles ----------------------------------------------------------------

@@ -16,6 +16,13 @@ Topics (relative names, so a namespace or a remap applies):
   follower stops instead of driving an old plan.
 - ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
   expanded cells when ``publish_expanded`` is set.
+- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
+  ``robot_frame_id``: the laser at the robot centre) in, with
+  ``mark_obstacles``: obstacles the map does not show are learnt from the
+  returns (marked once seen for ``obstacle_persistence``, cleared when a
+  beam passes through them again; :class:`~fusion_planner.core.obstacle_layer.ObstacleLayer`),
+  placed with the odometry pose of the scan's stamp. Every plan avoids the
+  confirmed ones, and a plan they block is replaced at once.
 - ``get_plan`` (nav_msgs/srv/GetPlan): plans between the request's poses
   without touching ``plan``; an empty path on failure.
 - ``diagnostics`` out: outcome of each request (``succeeded`` or the
@@ -24,7 +31,9 @@ Topics (relative names, so a namespace or a remap applies):
   waiting), plan time and figures.
 
 Replanning happens on a new goal, on the first start pose after a goal that
-was waiting for one, and on a new map that leaves no valid plan: the current
+was waiting for one, when a confirmed scan obstacle comes within the robot
+radius of the rest of the plan, and on a new map that leaves no valid plan
+(a new map also forgets the scan obstacles): the current
 plan is re-checked against the new map from the robot's position on, and a
 path cell that was traversable and is not any more (or a changed map
 geometry) triggers a new plan.
@@ -35,6 +44,7 @@ inflation, the nearest traversable cell centre within the tolerance that is
 connected to the start is used instead (:func:`nearest_free_goal`).
 """
 
+import collections
 import math
 from dataclasses import dataclass
 
@@ -46,15 +56,20 @@ from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
 from scipy import ndimage
+from scipy.spatial import cKDTree
+from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import Marker, MarkerArray
 
 from fusion_planner.core import raster
 from fusion_planner.core.errors import GoalOccupied, InvalidInput, PlanningError
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
+from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import DEFAULT_OCCUPIED_THRESHOLD
+from fusion_planner.core.obstacle_layer import ObstacleLayer
 from fusion_planner.core.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
+from fusion_planner.ros.local_planner import pose_at
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.node_main import run_node
 
@@ -78,6 +93,10 @@ MAX_TOLERANCE_CELLS = 500
 MAX_EXPANDED_MARKER_POINTS = 100_000
 #: Diameter of the key-node spheres [m].
 KEY_NODE_MARKER_SIZE_M = 0.15
+#: Poses remembered to place scans at their own time [1].
+POSE_HISTORY = 50
+#: Longest time a pose is moved ahead along its velocity to a scan's stamp [s].
+POSE_EXTRAPOLATION_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -100,6 +119,11 @@ class GlobalPlannerParams:
     planning_time_limit: float = 2.0
     goal_tolerance: float = 0.5
     publish_expanded: bool = False
+    mark_obstacles: bool = True
+    robot_frame_id: str = 'base_link'
+    obstacle_persistence: float = 1.0
+    obstacle_mark_range: float = 3.0
+    obstacle_clear_range: float = 4.0
     diagnostics_period: float = 1.0
 
     def __post_init__(self):
@@ -117,6 +141,13 @@ class GlobalPlannerParams:
         """The fields that decide how an OccupancyGrid becomes a GridMap."""
         return (self.frame_id, self.unknown_is_occupied, self.occupied_threshold,
                 self.max_map_cells)
+
+    def obstacle_layer(self, grid):
+        """A new :class:`ObstacleLayer` on ``grid``, or None without ``mark_obstacles``."""
+        if not self.mark_obstacles:
+            return None
+        return ObstacleLayer(grid, self.obstacle_persistence, self.obstacle_mark_range,
+                             self.obstacle_clear_range)
 
 
 #: Every parameter of the node; config/params.yaml lists the same names.
@@ -152,6 +183,18 @@ PARAMETER_SPECS = (
                   'a goal_pose in an obstacle moves to the nearest free cell within this [m]',
                   float_range(0.0, 100.0)),
     ParameterSpec('publish_expanded', False, 'draw the expanded cells on plan_markers'),
+    ParameterSpec('mark_obstacles', True,
+                  'learn obstacles the map does not show from scan and plan around them',
+                  read_only=True),
+    ParameterSpec('robot_frame_id', 'base_link', 'frame of the scan (the laser at the robot centre)',
+                  read_only=True),
+    ParameterSpec('obstacle_persistence', 1.0,
+                  'a scan return must stay in its cell this long to become an obstacle [s]',
+                  float_range(0.0, 60.0), read_only=True),
+    ParameterSpec('obstacle_mark_range', 3.0, 'scan returns farther than this are not marked [m]',
+                  float_range(0.1, 100.0), read_only=True),
+    ParameterSpec('obstacle_clear_range', 4.0, 'beams clear the cells they cross up to this [m]',
+                  float_range(0.1, 100.0), read_only=True),
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),
@@ -246,6 +289,9 @@ class GlobalPlannerNode(Node):
         self._goal = None  # (x, y, yaw) of the current goal_pose goal
         self._waiting = False  # the current goal waits for a map or a start pose
         self._plan = None  # (N, 2) published plan, None when none is valid
+        self._layer = None  # ObstacleLayer of the scans on the current map
+        self._marked_planner = None  # planner on the map plus confirmed scan obstacles
+        self._poses = collections.deque(maxlen=POSE_HISTORY)  # (stamp, pose, velocity)
 
         guard = self._diagnostics.guard
         self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
@@ -259,6 +305,9 @@ class GlobalPlannerNode(Node):
         else:
             self.create_subscription(PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
                                      guard('amcl_pose', self._on_pose_with_covariance),
+                                     qos_profile_sensor_data)
+        if params.mark_obstacles:
+            self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
                                      qos_profile_sensor_data)
         self.create_service(GetPlan, 'get_plan',
                             guard('get_plan', self._on_get_plan, on_error=self._empty_response))
@@ -288,15 +337,38 @@ class GlobalPlannerNode(Node):
         self._replan('goal_pose')
 
     def _on_odometry(self, msg):
-        self._set_start(conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry'))
+        pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
+        self._set_start(pose, msg.header.stamp, conv.odometry_to_velocity(msg, 'odometry'))
 
     def _on_pose_with_covariance(self, msg):
-        self._set_start(conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose'))
+        pose = conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose')
+        self._set_start(pose, msg.header.stamp, (0.0, 0.0))
 
-    def _set_start(self, pose):
+    def _set_start(self, pose, stamp, velocity):
         self._start = pose
+        t = conv.stamp_to_seconds(stamp)
+        if self._poses and t < self._poses[-1][0]:
+            self._poses.clear()  # the clock went back (a simulation reset)
+        self._poses.append((t, np.array(pose), np.array(velocity, dtype=float)))
         if self._waiting and self._map_msg is not None:
             self._replan('start pose')
+
+    def _on_scan(self, msg):
+        """Mark and clear scan obstacles; replan when they block the plan."""
+        if self._layer is None or not self._poses:
+            return  # no map to mark on, or no pose to place the beams with
+        stamp = conv.stamp_to_seconds(msg.header.stamp)
+        pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
+            else self._poses[-1][1]
+        ends, hit = conv.scan_to_rays(msg, tuple(pose), self._params.current.robot_frame_id,
+                                      'scan')
+        if not self._layer.update(pose[:2], ends, hit, self._now_s()):
+            return
+        self._marked_planner = None
+        self._components = None
+        if self._plan is not None and self._goal is not None and self._plan_blocked():
+            self.get_logger().info('scan obstacles block the plan: replanning')
+            self._replan('scan obstacle')
 
     def _on_get_plan(self, request, response):
         """Serve nav_msgs/srv/GetPlan; the published plan is left alone."""
@@ -380,11 +452,13 @@ class GlobalPlannerNode(Node):
         return found
 
     def _ensure_planner(self):
-        """The planner on the current map with the current parameters, or None.
+        """The planner on the current map and scan obstacles with the current parameters.
 
-        Applies parameter changes lazily, in the executor's thread: map
-        options rebuild the grid from the kept message, the rest reconfigure
-        the planner (keeping the map preparation).
+        None without a map. Applies parameter changes lazily, in the
+        executor's thread: map options rebuild the grid from the kept
+        message, the rest reconfigure the planner (keeping the map
+        preparation). With confirmed scan obstacles, the planner works on a
+        copy of the map with them burnt in, prepared once per change.
         """
         if self._map_msg is None:
             return None
@@ -394,7 +468,15 @@ class GlobalPlannerNode(Node):
         config = params.planner_config()
         if self._planner.config != config:
             self._planner.config = config
-        return self._planner
+        if self._layer is None or not len(self._layer.confirmed_cells()):
+            return self._planner
+        if self._marked_planner is None:
+            grid = self._planner.grid
+            marked = GridMap(self._layer.occupied(), grid.resolution, grid.origin)
+            self._marked_planner = GlobalPlanner(marked, config)
+        elif self._marked_planner.config != config:
+            self._marked_planner.config = config
+        return self._marked_planner
 
     def _load_map(self, msg, params):
         """Convert and cache a map (MapError leaves the previous map in place)."""
@@ -409,6 +491,8 @@ class GlobalPlannerNode(Node):
         self._map_msg = msg
         self._map_options = params.map_options()
         self._planner = GlobalPlanner(grid, params.planner_config())
+        self._layer = params.obstacle_layer(grid)
+        self._marked_planner = None
         self._components = None
 
     def _same_map(self, msg):
@@ -422,18 +506,36 @@ class GlobalPlannerNode(Node):
             return False
         return bool(np.array_equal(np.frombuffer(old.data, np.int8), np.frombuffer(msg.data, np.int8)))
 
+    def _plan_blocked(self):
+        """Whether a confirmed scan obstacle lies within the robot radius of the rest of the plan.
+
+        Cell-centre distances, as the planner's inflation measures them.
+        """
+        confirmed = self._layer.confirmed_cells()
+        if not len(confirmed):
+            return False
+        grid = self._planner.grid
+        cells = raster.path_cells(grid, self._remaining_plan())
+        reach = self._params.current.robot_radius / grid.resolution
+        distance, _ = cKDTree(confirmed).query(cells, distance_upper_bound=reach + 1e-9)
+        return bool(np.isfinite(distance).any())
+
+    def _remaining_plan(self):
+        """The current plan from its point nearest the robot on."""
+        path = self._plan
+        if self._start is not None and len(path) > 1:
+            nearest = int(np.argmin(np.hypot(*(path - np.array(self._start[:2])).T)))
+            path = path[nearest:]
+        return path
+
     def _plan_survives(self, old_planner, radius):
         """Whether the rest of the current plan is still traversable on the new map.
 
         A cell that was not traversable on the old map either (e.g. a start in
         the inflation) does not count against the plan.
         """
-        path = self._plan
-        if self._start is not None and len(path) > 1:
-            nearest = int(np.argmin(np.hypot(*(path - np.array(self._start[:2])).T)))
-            path = path[nearest:]
         new_grid = self._planner.grid
-        cells = raster.path_cells(new_grid, path)
+        cells = raster.path_cells(new_grid, self._remaining_plan())
         ok = _traversable_at(new_grid, cells, radius)
         if ok.all():
             return True
@@ -453,7 +555,11 @@ class GlobalPlannerNode(Node):
             f'{what}: plan of {m.length_m:.2f} m in {m.time_s * 1e3:.1f} ms',
             last_error='', plan_time_s=m.time_s, path_length_m=m.length_m,
             expanded=m.expanded, key_points=m.key_points, min_clearance_m=m.min_clearance_m,
-            goal_moved_m=moved)
+            goal_moved_m=moved, scan_obstacle_cells=self._scan_obstacle_cells())
+
+    def _scan_obstacle_cells(self):
+        """Confirmed scan obstacle cells the plans avoid [1]."""
+        return 0 if self._layer is None else len(self._layer.confirmed_cells())
 
     def _markers(self, result):
         stamp = self._now()
@@ -481,6 +587,9 @@ class GlobalPlannerNode(Node):
 
     def _now(self):
         return self.get_clock().now().to_msg()
+
+    def _now_s(self):
+        return self.get_clock().now().nanoseconds * 1e-9
 
 
 def _traversable_at(grid, cells, radius):
