@@ -1,4 +1,4 @@
-"""Shared pytest fixtures: the benchmark data folder and the package path."""
+"""Shared pytest fixtures: the benchmark data folder, an rclpy context, the package path."""
 
 import fcntl
 import os
@@ -55,3 +55,13 @@ def benchmark_dir():
         pytest.skip(f'MovingAI benchmark data not found at {BENCHMARK_DIR} '
                     '(it sits in ../shared/benchmarks beside a CI clone)')
     return BENCHMARK_DIR
+
+
+@pytest.fixture(scope='module')
+def context():
+    """A fresh rclpy context for one test module (no signal handlers: pytest owns Ctrl-C)."""
+    rclpy = pytest.importorskip('rclpy')
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)

@@ -15,7 +15,7 @@ from sensor_msgs.msg import LaserScan
 from fusion_planner.core.world import Rectangle, StaticScene
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.global_planner import GlobalPlannerNode
-from test_global_planner_node import GOAL, START, Harness, context, odom_msg, wall_map  # noqa: F401
+from test_global_planner_node import GOAL, START, Harness, odom_msg, wall_map
 
 BEAMS = 360
 RANGE_MAX = 6.0  # [m]

@@ -109,7 +109,7 @@ class GlobalPlannerParams:
     neighbourhood: int = 8
     alpha: float = 1.0
     beta: float = 1.0
-    gamma: float = 0.1
+    gamma: float = PlannerConfig.gamma
     refine: bool = True
     robot_radius: float = 0.2
     safety_distance: float = 0.05
@@ -164,7 +164,8 @@ PARAMETER_SPECS = (
                   int_range(4, 16, 4)),
     ParameterSpec('alpha', 1.0, 'weight of the path cost g, eq. (5) [1]', float_range(0.01, 100.0)),
     ParameterSpec('beta', 1.0, 'weight of the heuristic h, eq. (5) [1]', float_range(0.01, 100.0)),
-    ParameterSpec('gamma', 0.1, 'gain of the distance-dependent heuristic weight, eqs. (6)-(8) [1]',
+    ParameterSpec('gamma', PlannerConfig.gamma,
+                  'gain of the distance-dependent heuristic weight, eqs. (6)-(8) [1]',
                   float_range(0.0, 100.0)),
     ParameterSpec('refine', True, 'remove redundant nodes and smooth the path (section 1.3.3)'),
     ParameterSpec('robot_radius', 0.2, 'robot radius; obstacles are inflated by it [m]',
