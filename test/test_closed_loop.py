@@ -38,6 +38,7 @@ from fusion_planner.cli import demo_command as demo  # noqa: E402
 from fusion_planner.core.grid import GridMap  # noqa: E402
 from fusion_planner.core.map_files import save_map_server  # noqa: E402
 from fusion_planner.core.scenario import load_scenario  # noqa: E402
+from fusion_planner.ros.global_planner import GlobalPlannerParams  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 PARAMS_FILE = REPO / 'config' / 'params.yaml'
@@ -88,6 +89,17 @@ def write_two_way_map(folder):
     return 'two_ways.yaml'
 
 
+def write_walled_off_map(folder):
+    """The room of :func:`write_map` with a closed 1.6 m x 2 m box of 0.2 m walls at its right."""
+    occupied = np.zeros((60, 100), dtype=bool)
+    occupied[0:22, 48:52] = True
+    occupied[34:58, 78:98] = True
+    occupied[36:56, 80:96] = False
+    folder.mkdir(parents=True, exist_ok=True)
+    save_map_server(GridMap(occupied, resolution=0.1), folder / 'walled_off.yaml')
+    return 'walled_off.yaml'
+
+
 #: A wall the map does not show, closing the shorter way (above the block).
 UPPER_WAY_CLOSED = {'rectangle': {'min': [4.8, 4.6], 'max': [5.2, 6.0]}}
 #: Wall time budget of a run that has to turn back [s].
@@ -124,10 +136,13 @@ def context():
 class Run:
     """The nodes of one test run, a monitor and its recorder, spun in the background."""
 
-    def __init__(self, context, scenario_file, ros_args=(), in_process=True, log_dir=None):
+    def __init__(self, context, scenario_file, ros_args=(), in_process=True, log_dir=None,
+                 overrides=None):
         self.context = context
         self.scenario = load_scenario(scenario_file)
         self.params = demo.node_parameters(self.scenario, scenario_file, REAL_TIME_FACTOR)
+        for node, values in (overrides or {}).items():
+            self.params[node].update(values)
         self.recorder = demo.RunRecorder(self.scenario,
                                          self.params['local_planner']['goal_tolerance'])
         self.nodes, self.procs = [], []
@@ -278,13 +293,7 @@ def test_a_new_goal_in_mid_run_reroutes_the_robot(context, tmp_path):
                                             run.recorder.poses[-1][1] - 1.05) > 1.0, 30.0)
         assert moved, 'the robot never started on the first plan'
         assert np.hypot(*(run.recorder.plan[-1] - first_goal)) < 0.2
-        goal_pub = run.monitor.create_publisher(PoseStamped, 'goal_pose', 10)
-        assert run.wait_for(lambda: goal_pub.get_subscription_count() > 0, 10.0)
-        msg = PoseStamped()
-        msg.header.frame_id = 'map'
-        msg.pose.position.x, msg.pose.position.y = second_goal
-        msg.pose.orientation.w = 1.0
-        goal_pub.publish(msg)
+        publish_goal(run, second_goal)
         rerouted = run.wait_for(
             lambda: np.hypot(*(run.recorder.plan[-1] - second_goal)) < 0.2, 10.0)
         assert rerouted, f'no plan to the new goal; last plan ends at {run.recorder.plan[-1]}'
@@ -318,6 +327,58 @@ def test_a_way_closed_by_an_unknown_wall_is_learnt_and_the_robot_arrives_by_the_
         for name, points in (('last plan', plans[-1]), ('robot', np.array(run.recorder.poses))):
             beside_block = points[(points[:, 0] > 3.5) & (points[:, 0] < 6.5), 1]
             assert (beside_block < 1.0).any(), f'{name} did not pass below the block'
+    finally:
+        run.close()
+
+
+def publish_goal(run, goal):
+    """Publish a goal_pose from the monitor (after the planner listens)."""
+    goal_pub = run.monitor.create_publisher(PoseStamped, 'goal_pose', 10)
+    assert run.wait_for(lambda: goal_pub.get_subscription_count() > 0, 10.0)
+    msg = PoseStamped()
+    msg.header.frame_id = 'map'
+    msg.pose.position.x, msg.pose.position.y = goal
+    msg.pose.orientation.w = 1.0
+    goal_pub.publish(msg)
+
+
+def test_an_unreachable_goal_fails_and_the_robot_does_not_move(context, tmp_path):
+    start = (1.05, 1.05, 0.0)
+    path = write_scenario(tmp_path, 'unreachable', start=start, goal=(8.85, 4.55),
+                          map_name=write_walled_off_map(tmp_path))
+    run = Run(context, path, overrides={'simulator': {'start_paused': False}})
+    try:
+        failed = run.wait_for(
+            lambda: run.recorder.planner_status.get('last_outcome') == 'no_valid_path', 30.0)
+        assert failed, run.recorder.planner_status
+        t0 = run.recorder.sim_time
+        assert run.wait_for(lambda: run.recorder.sim_time > t0 + 3.0, 30.0), 'the clock stopped'
+        poses = np.array(run.recorder.poses)
+        assert len(poses) and np.abs(poses[:, :2] - start[:2]).max() < 1e-6, 'the robot moved'
+        assert run.recorder.local_status.get('status') == 'no_path'
+        assert run.recorder.plan is None  # only empty plans were published
+    finally:
+        run.close()
+
+
+def test_a_goal_in_an_obstacle_moves_to_the_nearest_free_cell_and_is_reached(context, tmp_path):
+    path = write_scenario(tmp_path, 'goal_in_wall', start=(1.05, 1.05, 0.0), goal=(1.55, 4.55))
+    run = Run(context, path)
+    try:
+        assert run.wait_for(lambda: run.recorder.plan is not None, 30.0), 'no first plan'
+        requested = (5.0, 2.25)  # 5 cm above the wall's top: inside its inflation
+        publish_goal(run, requested)
+        moved = run.wait_for(lambda: float(run.recorder.planner_status.get('goal_moved_m', 0)) > 0,
+                             30.0)
+        assert moved, run.recorder.planner_status
+        goal_moved = float(run.recorder.planner_status['goal_moved_m'])
+        assert goal_moved <= GlobalPlannerParams().goal_tolerance
+        used_goal = run.recorder.plan[-1]
+        assert math.dist(used_goal, requested) == pytest.approx(goal_moved, abs=1e-3)
+        run.recorder.goal = np.array(used_goal)
+        run.recorder.arrived_at = None
+        assert run.wait_arrival() is None
+        assert int(run.final_status()['collisions']) == 0
     finally:
         run.close()
 
