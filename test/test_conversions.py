@@ -234,6 +234,17 @@ def test_bad_paths_are_refused():
         conv.path_from_msg(other, 'map')
 
 
+def test_plan_from_msg_gives_none_for_the_empty_stop_plan_in_the_right_frame():
+    empty = Path()
+    empty.header.frame_id = 'map'
+    assert conv.plan_from_msg(empty, 'map') is None
+    empty.header.frame_id = 'odom'
+    with pytest.raises(InvalidInput, match="'odom'"):
+        conv.plan_from_msg(empty, 'map')
+    msg = conv.path_to_msg([[0.0, 0.0], [1.0, 1.0]], 'map', stamp())
+    assert conv.plan_from_msg(msg, 'map').tolist() == [[0.0, 0.0], [1.0, 1.0]]
+
+
 # -- scans --------------------------------------------------------------------
 
 def scan(ranges, angle_min=0.0, increment=math.pi / 2, range_min=0.1, range_max=10.0, intensities=()):
@@ -389,6 +400,42 @@ def test_scan_conversion_only_raises_invalid_input(ranges, angle_min, increment,
     except InvalidInput:
         return
     assert pts.shape[1] == 2 and np.all(np.isfinite(pts))
+
+
+FAR = 2 * conv.MAX_COORDINATE_M
+
+
+def test_positions_beyond_the_coordinate_limit_are_refused_as_corrupt():
+    assert conv.pose_stamped_to_xy_yaw(pose_stamped(conv.MAX_COORDINATE_M, 0.0), 'map')[0] \
+        == conv.MAX_COORDINATE_M
+    with pytest.raises(InvalidInput, match='corrupt'):
+        conv.pose_stamped_to_xy_yaw(pose_stamped(0.0, -FAR), 'map')
+    path = conv.path_to_msg([[0.0, 0.0], [FAR, 1.0]], 'map', stamp())
+    with pytest.raises(InvalidInput, match='corrupt'):
+        conv.path_from_msg(path, 'map')
+    _, rejected = conv.ObstacleTracker('map').update(
+        MarkerArray(markers=[cylinder(1, FAR, 0.0)]), now_s=0.0)
+    assert len(rejected) == 1 and 'corrupt' in rejected[0]
+    with pytest.raises(InvalidInput, match='range_max'):
+        conv.scan_to_points(scan([1.0], range_max=FAR), (0.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize('msg', [occupancy(3, 2, [0] * 6, origin=(FAR, 0.0)),
+                                 occupancy(3, 2, [0] * 6, resolution=conv.MAX_COORDINATE_M)])
+def test_maps_reaching_beyond_the_coordinate_limit_are_refused(msg):
+    with pytest.raises(MapError, match='reaches'):
+        conv.occupancy_grid_to_grid_map(msg, 'map')
+
+
+def test_rates_beyond_the_limit_are_refused_as_corrupt():
+    odom = Odometry()
+    odom.twist.twist.linear.x = 2 * conv.MAX_RATE
+    with pytest.raises(InvalidInput, match='corrupt'):
+        conv.odometry_to_velocity(odom)
+    command = Twist()
+    command.angular.z = -2 * conv.MAX_RATE
+    with pytest.raises(InvalidInput, match='corrupt'):
+        conv.twist_to_velocity(command)
 
 
 def test_points_marker_and_delete_all():

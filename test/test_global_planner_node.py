@@ -30,12 +30,16 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core import raster
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.planner import GlobalPlanner
 from fusion_planner.ros import conversions as conv
+from fusion_planner.ros import fuzz
+from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S
 from fusion_planner.ros.global_planner import (
     LATCHED_QOS, PARAMETER_SPECS, GlobalPlannerNode, nearest_free_goal)
 
@@ -46,6 +50,11 @@ START = (1.0, 3.0)
 GOAL = (7.0, 3.0)
 WALL_COL = 40  # the wall at x in [4.0, 4.1) m
 TIMEOUT_S = 10.0
+#: Fuzzed bad messages per input sent over DDS [1] (1,000 each go in process:
+#: test_fuzz_inputs.py).
+DDS_BAD_MESSAGES = 100
+#: Map-size limit of the fuzzed planner [cells] (the wall map has 4,800).
+FUZZ_MAX_CELLS = 10_000
 _namespaces = itertools.count()
 
 
@@ -296,6 +305,48 @@ def test_bad_messages_do_not_kill_the_node(harness):
 
     assert harness.send_goal(*GOAL), 'the node must still plan after bad input'
     assert_ends_at(conv.path_from_msg(harness.plans[-1], 'map'), GOAL)
+
+
+def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_planning_goes_on(
+        context, capfd):
+    h = Harness(context, [Parameter('max_map_cells', value=FUZZ_MAX_CELLS)])
+    try:
+        h.setup_world()
+        scan_pub = h.tester.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
+        assert h.spin_until(lambda: scan_pub.get_subscription_count() > 0)
+        capfd.readouterr()  # only what the bad messages cause counts
+        started = time.monotonic()
+        inputs = [(h.map_pub, fuzz.occupancy_grids(max_cells=FUZZ_MAX_CELLS, bad_only=True)),
+                  (h.goal_pub, fuzz.pose_stampeds(bad_only=True)),
+                  (h.odom_pub, fuzz.odometries(bad_only=True)),
+                  (scan_pub, fuzz.laser_scans(bad_only=True))]
+        for publisher, strategy in inputs:
+            bad = fuzz.generate(strategy, DDS_BAD_MESSAGES)
+            refused = fuzz.publish_refused(
+                publisher, bad, lambda: h.planner._diagnostics.values['rejected'], h.spin_until)
+            assert refused >= 0.95 * DDS_BAD_MESSAGES, (publisher.topic_name, refused)
+        requests = list(fuzz.generate(fuzz.get_plan_requests(bad_only=True), DDS_BAD_MESSAGES))
+        for item in requests:
+            future = h.client.call_async(item.msg)
+            assert h.spin_until(future.done), 'get_plan did not answer'
+            assert len(future.result().plan.poses) == 0, item.defects
+        elapsed = time.monotonic() - started
+        values = h.planner._diagnostics.values
+        assert values['faults'] == 0, values['last_error']
+        assert h.planner._map_msg.info.width == 80, 'a bad map must not replace a good one'
+
+        # One rate-limited line per reason: five reasons here, no traceback.
+        err = capfd.readouterr().err
+        lines = fuzz.problem_lines(err, h.planner)
+        assert 5 <= len(lines) <= 5 * (elapsed // DEFAULT_LOG_PERIOD_S + 1), lines
+        assert 'Traceback' not in err
+
+        assert h.send_goal(*GOAL), 'the node must still plan after the bad input'
+        path = conv.path_from_msg(h.plans[-1], 'map')
+        assert_ends_at(path, GOAL)
+        assert_collision_free(wall_map(), path)
+    finally:
+        h.close()
 
 
 def test_bug_in_a_callback_is_reported_not_fatal(harness, monkeypatch):

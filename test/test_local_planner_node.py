@@ -13,8 +13,11 @@ import pathlib
 import threading
 import time
 
+import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 rclpy = pytest.importorskip('rclpy')
 
@@ -27,11 +30,14 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 from sensor_msgs.msg import LaserScan  # noqa: E402
+from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
 from fusion_planner.core import apf, follow  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
+from fusion_planner.ros import fuzz  # noqa: E402
 from fusion_planner.ros import local_planner as lp  # noqa: E402
+from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 
@@ -39,6 +45,11 @@ REPO = pathlib.Path(__file__).resolve().parent.parent
 SENSOR_RATE_HZ = 20.0
 #: Slack on wall-clock timing in a loaded test process [s].
 TIMING_SLACK_S = 0.15
+#: Fuzzed bad messages per input sent over DDS [1] (1,000 each go in process:
+#: test_fuzz_inputs.py).
+DDS_BAD_MESSAGES = 100
+#: Period of the test's condition polls [s].
+POLL_S = 0.005
 
 
 @pytest.fixture(scope='module')
@@ -125,7 +136,7 @@ class FakeRobot:
         while time.monotonic() < deadline:
             if condition():
                 return True
-            time.sleep(0.02)
+            time.sleep(POLL_S)
         return condition()
 
     def close(self):
@@ -233,20 +244,33 @@ def test_twist_stamped_by_parameter(context, stamped):
         fake.close()
 
 
-def test_bad_messages_are_refused_and_the_node_keeps_driving(robot):
+def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_the_robot_keeps_driving(
+        robot, capfd):
     robot.publish_plan()
     assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0)
-    bad = Odometry()
-    bad.header.frame_id = 'map'
-    bad.pose.pose.position.x = math.nan
-    bad.pose.pose.orientation.w = 1.0
-    for _ in range(20):
-        robot.odom_pub.publish(bad)
-    wrong_frame = conv.path_to_msg([[0.0, 0.0], [1.0, 1.0]], 'odom', conv.seconds_to_stamp(1.0))
-    robot.plan_pub.publish(wrong_frame)
+    obstacles_pub = robot.node.create_publisher(MarkerArray, 'obstacles', 10)
+    assert robot.wait_until(lambda: obstacles_pub.get_subscription_count() > 0, 5.0)
+    capfd.readouterr()  # only what the bad messages cause counts
+    started = time.monotonic()
+    inputs = [(robot.plan_pub, fuzz.paths(bad_only=True)),
+              (robot.odom_pub, fuzz.odometries(bad_only=True)),
+              (robot.scan_pub, fuzz.laser_scans(bad_only=True)),
+              (obstacles_pub, fuzz.marker_arrays(bad_only=True))]
+    for publisher, strategy in inputs:
+        refused = fuzz.publish_refused(
+            publisher, fuzz.generate(strategy, DDS_BAD_MESSAGES),
+            lambda: robot.planner._diagnostics.values['rejected'], robot.wait_until)
+        assert refused >= 0.95 * DDS_BAD_MESSAGES, (publisher.topic_name, refused)
+    elapsed = time.monotonic() - started
+    values = robot.planner._diagnostics.values
+    assert values['faults'] == 0, values['last_error']
+    err = capfd.readouterr().err
+    lines = fuzz.problem_lines(err, robot.planner)
+    assert 4 <= len(lines) <= 4 * (elapsed // DEFAULT_LOG_PERIOD_S + 1), lines
+    assert 'Traceback' not in err
     t0 = time.monotonic()
-    robot.wait(0.5)
-    assert moving(robot.commands_since(t0))
+    assert robot.wait_until(lambda: moving(robot.commands_since(t0)), 3.0), \
+        'the robot must keep following the good plan'
 
 
 def test_every_follower_and_field_coefficient_is_a_described_parameter_in_params_yaml(robot):
@@ -304,3 +328,13 @@ def test_diagnostics_report_status_and_step_timing(robot):
     assert 0.0 < float(timed['step_ms_mean']) <= float(timed['step_ms_max'])
     robot.odom_on = False
     assert robot.wait_until(lambda: robot.statuses[-1].get('status') == 'stale_odom', 5.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.floats(-1e300, 1e300), st.floats(-1e300, 1e300)),
+                min_size=1, max_size=12))
+def test_key_nodes_of_any_finite_path_are_finite_and_keep_its_ends(points):
+    path = np.array(points)
+    nodes = lp.key_nodes_of(path)
+    assert np.all(np.isfinite(nodes))
+    assert nodes[0].tolist() == path[0].tolist() and nodes[-1].tolist() == path[-1].tolist()

@@ -29,11 +29,18 @@ from visualization_msgs.msg import MarkerArray  # noqa: E402
 from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
 from fusion_planner.core.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
+from fusion_planner.ros import fuzz  # noqa: E402
 from fusion_planner.ros import simulator as sim  # noqa: E402
+from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 DEMO = REPO / 'config' / 'scenarios' / 'demo.yaml'
 WAIT_S = 10.0
+#: Period of the test's condition polls [s].
+POLL_S = 0.005
+#: Fuzzed bad messages per input sent over DDS [1] (1,000 each go in process:
+#: test_fuzz_inputs.py).
+DDS_BAD_MESSAGES = 100
 
 
 @pytest.fixture(scope='module')
@@ -91,7 +98,7 @@ class Probe:
         while time.monotonic() < deadline:
             if condition():
                 return True
-            time.sleep(0.02)
+            time.sleep(POLL_S)
         return condition()
 
     def sim_status(self):
@@ -171,6 +178,43 @@ def test_commands_move_the_robot_and_a_nan_command_stops_it(probe):
         time.sleep(0.025)
     assert speed() == 0.0
     assert probe.wait_until(lambda: int(probe.sim_status().get('rejected', 0)) >= 1)
+
+
+def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_commands_still_drive(
+        probe, capfd):
+    plan_pub = probe.node.create_publisher(Path, 'plan', sim.PLAN_QOS)
+    assert probe.wait_until(lambda: probe.cmd_pub.get_subscription_count() > 0
+                            and plan_pub.get_subscription_count() > 0)
+    robot = probe.sim.scenario.robot
+    limits = (sim.MAX_COMMAND_FACTOR * robot.max_speed, sim.MAX_COMMAND_FACTOR * robot.max_omega)
+    capfd.readouterr()  # only what the bad messages cause counts
+    started = time.monotonic()
+    for publisher, strategy in [(probe.cmd_pub, fuzz.twists(*limits, bad_only=True)),
+                                (plan_pub, fuzz.paths(bad_only=True))]:
+        refused = fuzz.publish_refused(
+            publisher, fuzz.generate(strategy, DDS_BAD_MESSAGES),
+            lambda: probe.sim._diagnostics.values['rejected'], probe.wait_until)
+        assert refused >= 0.95 * DDS_BAD_MESSAGES, (publisher.topic_name, refused)
+    elapsed = time.monotonic() - started
+    values = probe.sim._diagnostics.values
+    assert values['faults'] == 0, values['last_error']
+    err = capfd.readouterr().err
+    lines = fuzz.problem_lines(err, probe.sim)
+    assert 2 <= len(lines) <= 2 * (elapsed // DEFAULT_LOG_PERIOD_S + 1), lines
+    assert 'Traceback' not in err
+    # Refused commands stopped the robot; a good one drives it.
+    assert probe.wait_until(lambda: probe.messages('odom')[-1].twist.twist.linear.x == 0.0)
+    good = Twist()
+    good.linear.x, good.angular.z = 0.3, 0.5
+
+    def turning():
+        return probe.messages('odom')[-1].twist.twist.angular.z == 0.5
+
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline and not turning():
+        probe.cmd_pub.publish(good)
+        time.sleep(0.025)
+    assert turning()
 
 
 def test_robot_stops_when_commands_stop(probe):

@@ -10,6 +10,11 @@ Conventions:
 
 - Poses are ``(x, y, yaw)`` tuples of float [m, m, rad] in the map frame;
   yaw is in ``(-pi, pi]``. Paths are ``(N, 2)`` float64 arrays [m].
+- Magnitudes: a position farther than :data:`MAX_COORDINATE_M` from the
+  frame's origin (a pose, a path point, a marker, a map corner, a scan's
+  ``range_max``) and a speed or turn rate beyond :data:`MAX_RATE` are refused
+  as corrupt, like NaN: no real robot has them, and the planners' arithmetic
+  (squared distances, cell indices) would overflow on them.
 - Tracked obstacles are ``(K, 5)`` float64 arrays of ``x, y, vx, vy, radius``
   [m, m, m/s, m/s, m], map frame (:data:`OBSTACLE_COLUMNS`).
 - Velocity commands are ``(v, omega)``: forward speed [m/s] along the robot's
@@ -46,6 +51,12 @@ QUATERNION_NORM_TOLERANCE = 0.05
 
 #: Nanoseconds per second.
 NS_PER_S = 1_000_000_000
+
+#: Largest accepted distance [m] of a position from its frame's origin; UTM
+#: coordinates reach ~1e7 m.
+MAX_COORDINATE_M = 1e9
+#: Largest accepted speed [m/s] or turn rate [rad/s] of odometry or a command.
+MAX_RATE = 1e3
 
 #: Column names of a tracked-obstacle array, shape (K, 5).
 OBSTACLE_COLUMNS = ('x', 'y', 'vx', 'vy', 'radius')
@@ -224,11 +235,11 @@ def pose_to_xy_yaw(pose, what='pose'):
     Raises
     ------
     InvalidInput
-        If x or y is NaN or infinite, or the orientation is refused by
-        :func:`yaw_of_quaternion`.
+        If x or y is NaN, infinite or beyond :data:`MAX_COORDINATE_M`, or the
+        orientation is refused by :func:`yaw_of_quaternion`.
     """
-    x = _finite(pose.position.x, f'{what} x')
-    y = _finite(pose.position.y, f'{what} y')
+    x = _finite(pose.position.x, f'{what} x', MAX_COORDINATE_M)
+    y = _finite(pose.position.y, f'{what} y', MAX_COORDINATE_M)
     return x, y, yaw_of_quaternion(pose.orientation, f'{what} orientation')
 
 
@@ -295,7 +306,7 @@ def odometry_to_velocity(msg, what='odometry'):
     Raises
     ------
     InvalidInput
-        If either is NaN or infinite.
+        If either is NaN, infinite or beyond :data:`MAX_RATE`.
     """
     return twist_to_velocity(msg.twist.twist, what)
 
@@ -320,12 +331,12 @@ def twist_to_velocity(msg, what='twist'):
     Raises
     ------
     InvalidInput
-        If either value is NaN or infinite. Saturation to speed limits is the
-        caller's job.
+        If either value is NaN, infinite or beyond :data:`MAX_RATE`.
+        Saturation to the robot's limits is the caller's job.
     """
     twist = msg.twist if isinstance(msg, TwistStamped) else msg
-    return (_finite(twist.linear.x, f'{what} linear.x'),
-            _finite(twist.angular.z, f'{what} angular.z'))
+    return (_finite(twist.linear.x, f'{what} linear.x', MAX_RATE),
+            _finite(twist.angular.z, f'{what} angular.z', MAX_RATE))
 
 
 def velocity_to_twist(v, omega):
@@ -387,7 +398,8 @@ def occupancy_grid_to_grid_map(msg, frame_id, unknown_is_occupied=False,
     MapError
         Wrong frame, bad quaternion, non-finite origin, bad resolution, data
         length other than width x height, too many cells, values outside
-        -1..100.
+        -1..100, a corner farther than :data:`MAX_COORDINATE_M` from the
+        frame's origin.
 
     Notes
     -----
@@ -408,10 +420,16 @@ def occupancy_grid_to_grid_map(msg, frame_id, unknown_is_occupied=False,
     # 0.100000001); rounding to float32's 7 significant digits gives back
     # the sender's value, so a point on a cell border stays in its cell.
     resolution = float(f'{info.resolution:.7g}')
-    return map_files.from_occupancy_values(
+    grid = map_files.from_occupancy_values(
         info.width, info.height, resolution, origin, data,
         unknown_is_occupied=unknown_is_occupied, occupied_threshold=occupied_threshold,
         max_cells=max_cells)
+    with np.errstate(over='ignore', invalid='ignore'):
+        reach = float(np.max(np.abs(grid.bounds())))
+    if not reach <= MAX_COORDINATE_M:  # also when it overflowed
+        raise MapError(f'map reaches {reach:.3g} m from the origin of its frame, beyond '
+                       f'{MAX_COORDINATE_M:g} m: bogus origin or resolution')
+    return grid
 
 
 def grid_map_to_occupancy_grid(grid, frame_id, stamp):
@@ -553,8 +571,9 @@ def path_from_msg(msg, frame_id, what='path'):
     Raises
     ------
     InvalidInput
-        Empty path (check ``len(msg.poses)`` first when empty means "stop"),
-        wrong frame, NaN or infinite coordinates.
+        Empty path (see :func:`plan_from_msg` when empty means "stop"),
+        wrong frame, NaN or infinite coordinates or ones beyond
+        :data:`MAX_COORDINATE_M`.
     """
     check_frame(msg.header.frame_id, frame_id, what)
     if len(msg.poses) == 0:
@@ -562,8 +581,11 @@ def path_from_msg(msg, frame_id, what='path'):
     for pose in msg.poses:
         if pose.header.frame_id:
             check_frame(pose.header.frame_id, frame_id, f'a pose of {what}')
-    pts = np.array([(p.pose.position.x, p.pose.position.y) for p in msg.poses], dtype=float)
-    return raster.as_polyline(pts, what)
+    pts = raster.as_polyline(
+        [(p.pose.position.x, p.pose.position.y) for p in msg.poses], what)
+    if np.abs(pts).max() > MAX_COORDINATE_M:
+        raise InvalidInput(f'{what} has a point beyond +-{MAX_COORDINATE_M:g} m: corrupt')
+    return pts
 
 
 def plan_from_msg(msg, frame_id, what='plan'):
@@ -596,32 +618,10 @@ def plan_from_msg(msg, frame_id, what='plan'):
 # -- scans --------------------------------------------------------------------
 
 def scan_to_points(msg, robot_pose, frame_id=None, what='scan'):
-    """Map-frame endpoints of the valid returns of a ``sensor_msgs/LaserScan``.
+    """Map-frame endpoints ``(M, 2)`` [m] of the returns of a ``sensor_msgs/LaserScan``.
 
-    Parameters
-    ----------
-    msg : sensor_msgs.msg.LaserScan
-        Beams in the robot frame: the sensor is assumed to sit at the robot's
-        origin facing forward (no tf2 lookup).
-    robot_pose : tuple of float
-        ``(x, y, yaw)`` [m, m, rad] of the robot in the map frame.
-    frame_id : str, optional
-        When given, the scan's frame must be this (or empty).
-    what : str
-        Name used in the error sentence.
-
-    Returns
-    -------
-    ndarray, float64, shape (M, 2)
-        ``(x, y)`` [m], map frame, of every range that is finite and lies in
-        ``[range_min, range_max)``; NaN, infinite (no return, REP-117),
-        too-short and too-long ranges are dropped, as is a beam whose
-        endpoint overflows. M may be 0.
-
-    Raises
-    ------
-    InvalidInput
-        As :func:`scan_to_rays`.
+    The ends of :func:`scan_to_rays` that are returns: ranges that are
+    finite and lie in ``[range_min, range_max)``. Same parameters and errors.
     """
     ends, hit = scan_to_rays(msg, robot_pose, frame_id, what)
     return ends[hit]
@@ -658,8 +658,8 @@ def scan_to_rays(msg, robot_pose, frame_id=None, what='scan'):
     InvalidInput
         Non-finite pose or ``angle_min``; ``angle_increment`` not a positive
         finite number; ``range_min``/``range_max`` not finite,
-        ``range_min < 0`` or ``range_max <= range_min``; ``ranges`` not a
-        flat sequence; wrong frame.
+        ``range_min < 0``, ``range_max <= range_min`` or ``range_max`` beyond
+        :data:`MAX_COORDINATE_M`; ``ranges`` not a flat sequence; wrong frame.
 
     Notes
     -----
@@ -675,7 +675,7 @@ def scan_to_rays(msg, robot_pose, frame_id=None, what='scan'):
     if increment <= 0:
         raise InvalidInput(f'{what} angle_increment must be positive, got {increment!r}')
     range_min = _finite(msg.range_min, f'{what} range_min')
-    range_max = _finite(msg.range_max, f'{what} range_max')
+    range_max = _finite(msg.range_max, f'{what} range_max', MAX_COORDINATE_M)
     if range_min < 0 or range_max <= range_min:
         raise InvalidInput(
             f'{what} range limits must satisfy 0 <= range_min < range_max, '
@@ -728,8 +728,9 @@ class ObstacleTracker:
     ``DELETE`` removes ``(ns, id)``, ``DELETEALL`` removes every track; markers
     are processed in array order, as RViz does. Only ``CYLINDER`` markers are
     obstacles; other types are refused. ``scale.x`` is the diameter; the
-    orientation is ignored (a vertical cylinder). A marker with a NaN or
-    infinite position, a NaN, zero, negative or huge scale, or a wrong frame is
+    orientation is ignored (a vertical cylinder). A marker with a NaN,
+    infinite or too distant position (:data:`MAX_COORDINATE_M`), a NaN, zero,
+    negative or huge scale, or a wrong frame is
     refused on its own; the rest of the array is still used. Velocities use
     the markers' header stamps when set (sim time), else the receive time.
 
@@ -832,8 +833,8 @@ class ObstacleTracker:
         if marker.type != Marker.CYLINDER:
             raise InvalidInput(f'{name} is of type {marker.type}, not a cylinder')
         check_frame(marker.header.frame_id, self.frame_id, name)
-        x = _finite(marker.pose.position.x, f'{name} x')
-        y = _finite(marker.pose.position.y, f'{name} y')
+        x = _finite(marker.pose.position.x, f'{name} x', MAX_COORDINATE_M)
+        y = _finite(marker.pose.position.y, f'{name} y', MAX_COORDINATE_M)
         diameter = _finite(marker.scale.x, f'{name} scale.x')
         if not MIN_OBSTACLE_DIAMETER_M <= diameter <= self.max_diameter:
             raise InvalidInput(
@@ -986,12 +987,14 @@ def _is_number(value):
     return not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
 
 
-def _finite(value, what):
-    """``value`` as a finite float, else InvalidInput naming ``what``."""
+def _finite(value, what, limit=None):
+    """``value`` as a finite float (within ``[-limit, limit]`` if given), else InvalidInput."""
     try:
         number = float(value)
     except (TypeError, ValueError):
         raise InvalidInput(f'{what} must be a number, got {value!r}') from None
     if isinstance(value, bool) or not math.isfinite(number):
         raise InvalidInput(f'{what} must be a finite number, got {value!r}')
+    if limit is not None and abs(number) > limit:
+        raise InvalidInput(f'{what} {number:.3g} lies beyond +-{limit:g}: corrupt')
     return number

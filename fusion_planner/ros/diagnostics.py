@@ -242,12 +242,26 @@ class DiagnosticsReporter:
             self._values[key] += 1
 
     def _problem(self, level, what, outcome, text, **values):
-        line = f'{what}: {text}'
+        line = one_line(f'{what}: {text}')
         if level == ERROR:
             self.log.error(f'{what}/{outcome}', line)
         else:
             self.log.warning(f'{what}/{outcome}', line)
         self.update(level, line, last_outcome=outcome, last_error=line, **values)
+
+
+def one_line(text):
+    """``text`` with control characters escaped, so that a log line stays one line.
+
+    Error sentences quote message fields (a frame id, a marker namespace),
+    which a sender may fill with newlines or escape codes.
+
+    Examples
+    --------
+    >>> print(one_line('goal is in frame "map\\n[ERROR] fake"'))
+    goal is in frame "map\\n[ERROR] fake"
+    """
+    return ''.join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def _text(value):

@@ -36,9 +36,11 @@ on arrival, after a controller failure, when odometry is older than
 ``plan_timeout``, when the node clock jumps backwards (until fresh data
 arrives), after an internal error, and - with ``on_stale_scan: stop`` - when
 the last scan is older than ``scan_timeout`` (``slow`` caps the speed at
-``stale_scan_speed`` instead and keeps steering with the last scan). Every
-refused message is one rate-limited log line and a diagnostics entry; the
-node never dies on a message.
+``stale_scan_speed`` instead and keeps steering with the last scan). A
+command never exceeds ``max_speed`` or ``max_omega``, whatever the measured
+velocity the controller brakes from. Every refused message is one
+rate-limited log line and a diagnostics entry; the node never dies on a
+message.
 """
 
 import collections
@@ -239,6 +241,7 @@ LocalPlannerParams = make_dataclass(
                '__module__': __name__})
 
 
+@np.errstate(over='ignore', invalid='ignore')  # overflow on absurd coordinates is handled
 def key_nodes_of(path, min_turn=DEFAULT_KEY_NODE_MIN_TURN_RAD):
     """Key nodes of a global plan: its ends and the corners its smoothing rounded.
 
@@ -263,8 +266,9 @@ def key_nodes_of(path, min_turn=DEFAULT_KEY_NODE_MIN_TURN_RAD):
     ndarray, float64, shape (K, 2)
         The first point, one corner per turning run, the last point (the
         goal). A corner is replaced by the run's middle vertex when the
-        two segments are (anti)parallel or the intersection lies farther
-        from the run than the run is long (a turn close to 180 degrees).
+        two segments are (anti)parallel, the intersection lies farther
+        from the run than the run is long (a turn close to 180 degrees), or
+        it overflows (absurd coordinates): key nodes are always finite.
 
     Notes
     -----
@@ -313,7 +317,8 @@ def _corner(pts, first, last):
     corner = a + t * da
     run_length = float(np.sum(np.hypot(*np.diff(pts[first:last + 1], axis=0).T))) \
         + math.hypot(*da) + math.hypot(*db)
-    if math.hypot(*(corner - middle)) > run_length:
+    # Also the middle vertex when the corner is not finite (overflow on absurd coordinates).
+    if not math.hypot(*(corner - middle)) <= run_length:
         return middle.copy()
     return corner
 
@@ -428,14 +433,13 @@ class LocalPlannerNode(Node):
 
     def _on_plan(self, msg):
         """Take a new global plan; an empty one means stop."""
+        path = conv.plan_from_msg(msg, self._frame_id, 'plan')
         with self._lock:
-            if len(msg.poses) == 0:
-                conv.check_frame(msg.header.frame_id, self._frame_id, 'plan')
+            if path is None:
                 if self._plan is not None:
                     self.get_logger().info('empty plan received: stopping')
                 self._drop_plan()
                 return
-            path = conv.path_from_msg(msg, self._frame_id, 'plan')
             if self._plan is not None and self._plan.shape == path.shape \
                     and np.array_equal(self._plan, path):
                 return  # the same plan again (a latched republish): keep the state
@@ -521,7 +525,10 @@ class LocalPlannerNode(Node):
             obs = follow.Observation(pose=pose, velocity=velocity, obstacle_points=points,
                                      tracked=self._tracker.obstacles(now), time=now)
             command = self._controller.compute(obs)
-            v, omega = command.v, command.omega
+            # The robot's limits hold whatever the controller asks: it brakes from the
+            # measured velocity, which an odometry glitch can put beyond them.
+            v = min(max(command.v, -params.max_speed), params.max_speed)
+            omega = min(max(command.omega, -params.max_omega), params.max_omega)
             if command.status in STOPPED_STATUSES:
                 v = omega = 0.0
             elif scan_stale:

@@ -38,6 +38,9 @@ Topics (relative names, so a namespace or a remap applies):
 - ``cmd_vel`` (geometry_msgs/Twist, reliable) in: applied until a newer
   one arrives or it is older than ``cmd_timeout`` (then the robot stops). A
   command with a NaN, infinite or huge value is refused and the robot stops.
+- ``plan`` (nav_msgs/Path, latched) in, as a signal only: a plan answers the
+  goal, and the first non-empty one starts a world held by ``start_paused``;
+  a malformed one (wrong frame, NaN points) is refused.
 - ``goal_pose`` (geometry_msgs/PoseStamped) out with ``publish_goal``: the
   scenario's goal, once a subscriber (the global planner) is matched,
   re-sent until a ``plan`` answers (at most :data:`MAX_GOAL_ATTEMPTS`).
@@ -352,9 +355,11 @@ class SimulatorNode(Node):
         self._command = (v, omega)
 
     def _on_plan(self, msg):
+        """A plan answers the goal; the first non-empty one starts a paused world."""
+        path = conv.plan_from_msg(msg, self._frame_id, 'plan')  # refuses one nobody can follow
         if self._goal_sent_at is not None:
             self._goal_answered = True
-        if self._paused and len(msg.poses):
+        if self._paused and path is not None:
             self._paused = False
             self.get_logger().info('first plan received: the world starts moving')
 
