@@ -69,8 +69,8 @@ from fusion_planner.core.obstacle_layer import ObstacleLayer
 from fusion_planner.core.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
-from fusion_planner.ros.local_planner import pose_at
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'global_planner'
@@ -97,6 +97,8 @@ KEY_NODE_MARKER_SIZE_M = 0.15
 POSE_HISTORY = 50
 #: Longest time a pose is moved ahead along its velocity to a scan's stamp [s].
 POSE_EXTRAPOLATION_S = 0.5
+#: A node-clock step backwards larger than this [s] is a clock reset.
+CLOCK_JUMP_TOLERANCE_S = 1e-3
 
 
 @dataclass(frozen=True)
@@ -293,6 +295,7 @@ class GlobalPlannerNode(Node):
         self._layer = None  # ObstacleLayer of the scans on the current map
         self._marked_planner = None  # planner on the map plus confirmed scan obstacles
         self._poses = collections.deque(maxlen=POSE_HISTORY)  # (stamp, pose, velocity)
+        self._last_now = -math.inf  # latest node-clock time seen [s]
 
         guard = self._diagnostics.guard
         self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
@@ -335,6 +338,7 @@ class GlobalPlannerNode(Node):
     def _on_goal(self, msg):
         """Plan to a new goal."""
         self._goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        self._check_clock()
         self._replan('goal_pose')
 
     def _on_odometry(self, msg):
@@ -346,16 +350,18 @@ class GlobalPlannerNode(Node):
         self._set_start(pose, msg.header.stamp, (0.0, 0.0))
 
     def _set_start(self, pose, stamp, velocity):
+        self._check_clock()
         self._start = pose
         t = conv.stamp_to_seconds(stamp)
         if self._poses and t < self._poses[-1][0]:
-            self._poses.clear()  # the clock went back (a simulation reset)
+            self._poses.clear()  # stamps went back (a simulation reset)
         self._poses.append((t, np.array(pose), np.array(velocity, dtype=float)))
         if self._waiting and self._map_msg is not None:
             self._replan('start pose')
 
     def _on_scan(self, msg):
         """Mark and clear scan obstacles; replan when they block the plan."""
+        self._check_clock()
         if self._layer is None or not self._poses:
             return  # no map to mark on, or no pose to place the beams with
         stamp = conv.stamp_to_seconds(msg.header.stamp)
@@ -392,6 +398,25 @@ class GlobalPlannerNode(Node):
         response.plan = conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2])
         self._report_success('get_plan', result, goal, used_goal)
         return response
+
+    def _check_clock(self):
+        """After the node clock jumped back (a simulation reset), forget timed state.
+
+        The start pose and the scan obstacles belong to the old timeline: the
+        next plan waits for fresh odometry rather than start from where the
+        robot was before the reset.
+        """
+        now = self._now_s()
+        if now < self._last_now - CLOCK_JUMP_TOLERANCE_S:
+            self.get_logger().warning(
+                f'clock jumped back from {self._last_now:.3f} s to {now:.3f} s: '
+                'waiting for a fresh start pose')
+            self._start = None
+            self._poses.clear()
+            if self._layer is not None:
+                self._layer.reset()
+                self._marked_planner = None
+        self._last_now = now
 
     # -- planning ---------------------------------------------------------------
 

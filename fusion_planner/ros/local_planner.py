@@ -16,7 +16,8 @@ Topics (relative names, so a namespace or a remap applies):
   the controller's state.
 - ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``, sensor-data QoS)
   in: pose and measured velocity. The pose is moved ahead along the measured
-  velocity from its stamp to the control step (:func:`pose_at`), which
+  velocity from its stamp to the control step
+  (:func:`~fusion_planner.ros.timed_pose.pose_at`), which
   compensates the delay of a message that arrived a step late.
 - ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
   ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
@@ -60,10 +61,10 @@ from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core import apf, follow
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'local_planner'
@@ -321,49 +322,6 @@ def _corner(pts, first, last):
     if not math.hypot(*(corner - middle)) <= run_length:
         return middle.copy()
     return corner
-
-
-def pose_at(history, t, max_gap):
-    """The robot pose at time ``t`` from timed odometry.
-
-    Parameters
-    ----------
-    history : sequence of tuple
-        ``(stamp [s], pose (3,) x, y, yaw [m, m, rad], velocity (2,) v, omega
-        [m/s, rad/s])``, oldest first, non-empty.
-    t : float
-        Time [s] on the odometry's clock.
-    max_gap : float
-        Longest time [s] the pose is predicted ahead of a message.
-
-    Returns
-    -------
-    ndarray, float64, shape (3,)
-        The pose of the latest message stamped at or before ``t`` (the oldest
-        one if all are later), moved ahead to ``t`` along its measured
-        velocity (unicycle) when ``0 < t - stamp <= max_gap``.
-
-    Notes
-    -----
-    This compensates the delay between a control step and the odometry it
-    uses (messages of another process or thread may arrive a step late), and
-    places a scan with the pose of its own time rather than the latest one.
-
-    Examples
-    --------
-    >>> pose_at([(1.0, np.zeros(3), np.array([0.5, 0.0]))], 1.2, 0.5).round(3).tolist()
-    [0.1, 0.0, 0.0]
-    """
-    chosen = history[0]
-    for entry in reversed(history):
-        if entry[0] <= t:
-            chosen = entry
-            break
-    stamp, pose, velocity = chosen
-    gap = t - stamp
-    if 0.0 < gap <= max_gap:
-        return integrate_unicycle(pose, velocity[0], velocity[1], gap)
-    return np.array(pose, dtype=float)
 
 
 class LocalPlannerNode(Node):
