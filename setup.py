@@ -31,10 +31,13 @@ setup(
     extras_require={
         # The ROS 2 Jazzy wheels, for machines without a sourced ROS install.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        # Pictures and animated GIFs of plans and runs.
         'plot': ['matplotlib', 'pillow'],
+        # MCAP recordings of the demo (mcap-ros2-support reads them back).
+        'record': ['mcap', 'mcap-ros2-support'],
         'bench': ['pyastar2d', 'tcod', 'pathfinding', 'python-motion-planning', 'networkx'],
         'test': ['pytest', 'pytest-timeout', 'hypothesis', 'matplotlib', 'pillow',
-                 'colcon-common-extensions'],
+                 'mcap', 'mcap-ros2-support', 'colcon-common-extensions'],
     },
     zip_safe=True,
     entry_points={

@@ -3,7 +3,7 @@
 Usage::
 
     fusion-planner demo [--scenario FILE] [--time-limit S] [--real-time-factor F]
-        [--plot PNG] [--processes]
+        [--plot PNG] [--gif GIF | --no-gif] [--record MCAP | --no-record] [--processes]
 
 Runs ``simulator``, ``global_planner`` and ``local_planner`` headless on a
 scenario (default: the bundled ``config/scenarios/demo.yaml``, with moving
@@ -20,10 +20,22 @@ the simulated time limit passes:
 The simulator publishes the simulated time on ``/clock`` and the planners run
 on it (``use_sim_time``), ``--real-time-factor`` times faster than the wall
 clock. While it runs, one updating line on stderr shows the simulated time,
-the distance to the goal and the collisions so far. At the end one outcome
-line goes to stdout (arrived, simulated time, driven path length,
-collisions, minimum clearance) and a picture of the run is written
-(default ``output/demo.png``).
+the distance to the goal, the collisions so far and an estimate of the wall
+time left (from the share of the straight-line distance covered). At the end
+one outcome line goes to stdout (arrived, simulated time, driven path
+length, collisions, minimum clearance) and the run is written out, each
+beside the picture unless told otherwise:
+
+- a picture (default ``output/demo.png``) and an animated GIF
+  (``output/demo.gif``), drawn like ``fusion-planner sim --plot/--gif``;
+- an MCAP recording (``output/demo.mcap``) of ``map``, ``plan``,
+  ``plan_markers``, ``local_plan``, ``odom``, ``scan``, ``obstacles``,
+  ``cmd_vel``, ``goal_pose`` and ``diagnostics`` in ROS 2 message encoding
+  (CDR, ``ros2msg`` schemas), stamped with the simulated time, for Foxglove
+  or ``ros2 bag play`` (see :mod:`fusion_planner.cli.recording`).
+
+A missing optional library (matplotlib for the pictures, mcap for the
+recording) or an unwritable file skips that output with one line on stderr.
 
 Exit status: 0 the robot arrived without a collision, 1 it did not arrive or
 collided, 2 bad input (unreadable scenario, ROS 2 not importable). Every
@@ -42,6 +54,8 @@ from dataclasses import fields
 
 import numpy as np
 
+from fusion_planner.cli.progress import eta_s, format_duration
+from fusion_planner.cli.recording import DefinitionNotFound, TopicRecorder
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.scenario import load_scenario
 from fusion_planner.core.simulation import follower_params
@@ -72,6 +86,9 @@ SPIN_STOP_TIMEOUT_S = 5.0
 SPIN_POLL_S = 0.05
 #: Node names of the package, in start order.
 NODES = ('simulator', 'global_planner', 'local_planner')
+#: Queue depth of the recorder's subscriptions [messages] (deep: a busy
+#: executor must not lose messages before they are written).
+RECORD_DEPTH = 100
 
 
 def add_parser(subparsers):
@@ -92,6 +109,15 @@ def add_parser(subparsers):
                         help='simulated seconds per wall second (default: %(default)s)')
     parser.add_argument('--plot', default=str(DEFAULT_PLOT), metavar='PNG',
                         help='picture of the run (default: %(default)s)')
+    gif = parser.add_mutually_exclusive_group()
+    gif.add_argument('--gif', metavar='GIF',
+                     help='animation of the run (default: beside the picture, as .gif)')
+    gif.add_argument('--no-gif', action='store_true', help='do not write the animation')
+    record = parser.add_mutually_exclusive_group()
+    record.add_argument('--record', metavar='MCAP',
+                        help='record the topics to an MCAP file (default: beside the picture, '
+                             'as .mcap)')
+    record.add_argument('--no-record', action='store_true', help='do not record the topics')
     parser.add_argument('--processes', action='store_true',
                         help='run the nodes as three processes of the installed executables '
                              'instead of one executor in this process')
@@ -193,7 +219,12 @@ def node_command(node):
     return [sys.executable, '-m', f'fusion_planner.ros.{node}']
 
 
-# -- recording ----------------------------------------------------------------------
+# -- watching -----------------------------------------------------------------------
+
+def _seconds(stamp):
+    """A ``builtin_interfaces/Time`` in seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
 
 class RunRecorder:
     """What the demo watches of a run, fed with ROS messages (no rclpy needed).
@@ -223,7 +254,11 @@ class RunRecorder:
         self.started_wall = None  # wall time the simulated clock first moved
         self.arrived_wall = None  # wall time the arrival was seen
         self.poses = []        # (x, y, yaw)
+        self.pose_times = []   # simulated stamp of each pose [s]
         self.tracks = []       # (K, 2) per obstacle message
+        self.track_times = []  # simulated stamp of each obstacle message [s]
+        self.escape_points = []  # (x, y) where the local planner reported a new stuck event
+        self.stuck_events = 0
         self.plan = None       # the latest non-empty plan, (N, 2)
         self.plans = []        # every non-empty plan, oldest first
         self.planner_status = {}
@@ -234,7 +269,7 @@ class RunRecorder:
         self.failure = None
 
     def on_clock(self, msg):
-        t = msg.clock.sec + msg.clock.nanosec * 1e-9
+        t = _seconds(msg.clock)
         with self._lock:
             if t != self.sim_time:
                 self.clock_wall = time.monotonic()
@@ -247,6 +282,7 @@ class RunRecorder:
         yaw = 2.0 * math.atan2(p.orientation.z, p.orientation.w)
         with self._lock:
             self.poses.append((p.position.x, p.position.y, yaw))
+            self.pose_times.append(_seconds(msg.header.stamp))
 
     def on_obstacles(self, msg):
         k = len(self.scenario.moving_obstacles)
@@ -258,6 +294,8 @@ class RunRecorder:
             if self.tracks and np.isnan(positions).any():
                 positions = np.where(np.isnan(positions), self.tracks[-1], positions)
             self.tracks.append(positions)
+            self.track_times.append(_seconds(msg.markers[0].header.stamp) if msg.markers
+                                    else self.sim_time)
 
     def on_plan(self, msg):
         if len(msg.poses):
@@ -266,12 +304,17 @@ class RunRecorder:
                 self.plans.append(self.plan)
 
     def on_diagnostics(self, msg):
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9  # sender's clock
+        stamp = _seconds(msg.header.stamp)  # sender's clock
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
             with self._lock:
                 if status.name.endswith('/local_planner'):
                     self.local_status = values
+                    stuck = int(values.get('stuck_events', 0))
+                    if stuck > self.stuck_events and self.poses:
+                        # reported as it happens: the robot is where odometry last put it
+                        self.escape_points.append(self.poses[-1][:2])
+                    self.stuck_events = max(self.stuck_events, stuck)
                     if values.get('status') == 'arrived' and self.arrived_at is None \
                             and self.distance_to_goal() <= self.arrival_radius:
                         self.arrived_at = stamp  # the local planner runs on simulated time
@@ -317,8 +360,8 @@ class RunRecorder:
 
         with self._lock:
             trajectory = np.array(self.poses, dtype=float).reshape(-1, 3)
-            k = len(self.scenario.moving_obstacles)
-            tracks = np.array(self.tracks, dtype=float).reshape(-1, k, 2) if self.tracks else None
+            tracks = self._tracks_at(self.pose_times)
+            escapes = np.array(self.escape_points, dtype=float).reshape(-1, 2)
             sim = dict(self.sim_status)
             local = dict(self.local_status)
             plan = self.plan
@@ -335,7 +378,20 @@ class RunRecorder:
             plan_length_m=None if plan is None else
             float(np.sum(np.hypot(*np.diff(plan, axis=0).T))),
             trajectory=trajectory, obstacle_tracks=tracks, plan_path=plan,
-            key_nodes=None if plan is None else key_nodes_of(plan))
+            key_nodes=None if plan is None else key_nodes_of(plan), escape_points=escapes)
+
+    def _tracks_at(self, times):
+        """Obstacle centres (T, K, 2) [m] last seen at or before each of ``times`` [s].
+
+        None without obstacle messages; before the first one, its positions.
+        Call with the lock held.
+        """
+        if not self.tracks:
+            return None
+        k = len(self.scenario.moving_obstacles)
+        tracks = np.array(self.tracks, dtype=float).reshape(-1, k, 2)
+        index = np.searchsorted(np.asarray(self.track_times), np.asarray(times), side='right') - 1
+        return tracks[np.clip(index, 0, len(tracks) - 1)]
 
 
 def attach_recorder(node, recorder):
@@ -591,27 +647,38 @@ def run(args):
     params = node_parameters(scenario, scenario_path, args.real_time_factor)
     recorder = RunRecorder(scenario, params['local_planner']['goal_tolerance'])
     wall_limit = time_limit / args.real_time_factor * 3.0 + WALL_SLACK_S
-    plot_path = pathlib.Path(args.plot)
+    plot_path, gif_path, mcap_path = output_paths(args)
     mode = 'three processes' if args.processes else 'one process'
     print(f"demo: scenario '{scenario.name}' ({scenario_path}), {mode}, "
           f'real-time factor {args.real_time_factor:g}, time limit {time_limit:g} s',
           file=sys.stderr)
+    start_distance = math.hypot(scenario.start[0] - scenario.goal[0],
+                                scenario.start[1] - scenario.goal[1])
 
     def progress(sim_time, distance, collisions):
+        started = recorder.started_wall
+        elapsed = 0.0 if started is None else time.monotonic() - started
+        eta = eta_s(elapsed, min(max(1.0 - distance / max(start_distance, 1e-9), 0.0), 1.0))
         print(f'\r  sim {sim_time:7.2f} s   distance to goal {distance:6.2f} m   '
-              f'collisions {collisions}   ', end='', file=sys.stderr, flush=True)
+              f'collisions {collisions}   ETA {format_duration(eta)}   ',
+              end='', file=sys.stderr, flush=True)
 
     context = rclpy.Context()
     # Ctrl-C stays a KeyboardInterrupt here: the finally below stops everything.
     rclpy.init(context=context, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
     wall_start = time.monotonic()
-    procs, nodes, spinner = [], [], None
+    procs, nodes, spinner, topic_recorder = [], [], None, None
     try:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
+        from rclpy.parameter import Parameter
 
-        nodes.append(Node('demo_monitor', context=context))
+        # on simulated time: the recording is stamped with it
+        nodes.append(Node('demo_monitor', context=context,
+                          parameter_overrides=[Parameter('use_sim_time', value=True)]))
         attach_recorder(nodes[0], recorder)
+        if mcap_path is not None:
+            topic_recorder = start_recording(nodes[0], mcap_path)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(nodes[0])
         if args.processes:
@@ -641,6 +708,8 @@ def run(args):
         print(file=sys.stderr)
         codes = stop_processes(procs) if procs else {}
         shutdown_executor(spinner, nodes, context)
+        if topic_recorder is not None:
+            counts = topic_recorder.close()
     reached = failure is None
     result = recorder.result(reached, failure)
     collided = result.collisions > 0
@@ -656,22 +725,101 @@ def run(args):
     if bad_exits:
         print(f'node processes exited with {bad_exits} (logs in {plot_path.parent / "demo_logs"})',
               file=sys.stderr)
-    _draw(scenario, result, plot_path)
+    _draw(scenario, result, plot_path, gif_path)
+    if topic_recorder is not None:
+        print(f'recording: {mcap_path} ({sum(counts.values())} messages on '
+              f'{sum(1 for n in counts.values() if n)} topics)', file=sys.stderr)
     return EXIT_OK if reached and not collided else EXIT_FAILED
 
 
-def _draw(scenario, result, plot_path):
-    """Write the picture of the run; a failure to draw is reported, not fatal."""
+def output_paths(args):
+    """The picture, animation and recording files of a run (None: not wanted).
+
+    Returns
+    -------
+    plot : pathlib.Path
+    gif, mcap : pathlib.Path or None
+        ``--gif`` / ``--record`` when given, else the picture's path with
+        the suffix ``.gif`` / ``.mcap``; None with ``--no-gif`` /
+        ``--no-record``.
+
+    Examples
+    --------
+    >>> import argparse
+    >>> output_paths(argparse.Namespace(plot='out/run.png', gif=None, no_gif=False,
+    ...                                 record=None, no_record=True))
+    (PosixPath('out/run.png'), PosixPath('out/run.gif'), None)
+    """
+    plot = pathlib.Path(args.plot)
+    gif = None if args.no_gif else pathlib.Path(args.gif or plot.with_suffix('.gif'))
+    mcap = None if args.no_record else pathlib.Path(args.record or plot.with_suffix('.mcap'))
+    return plot, gif, mcap
+
+
+def recorded_topics():
+    """The topics the demo records: ``(name, message class, subscription QoS)``.
+
+    Each QoS is compatible with the publisher's: transient local for the
+    latched ``map`` and ``plan``, best effort for the sensor streams
+    ``odom`` and ``scan``, reliable otherwise; deep (:data:`RECORD_DEPTH`).
+    The demo's local planner publishes ``Twist`` on ``cmd_vel``.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from geometry_msgs.msg import PoseStamped, Twist
+    from nav_msgs.msg import OccupancyGrid, Odometry, Path
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import LaserScan
+    from visualization_msgs.msg import MarkerArray
+
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    sensor = QoSProfile(depth=RECORD_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+    reliable = QoSProfile(depth=RECORD_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+    return (('map', OccupancyGrid, latched), ('plan', Path, latched),
+            ('plan_markers', MarkerArray, reliable), ('local_plan', Path, reliable),
+            ('odom', Odometry, sensor), ('scan', LaserScan, sensor),
+            ('obstacles', MarkerArray, reliable), ('cmd_vel', Twist, reliable),
+            ('goal_pose', PoseStamped, reliable), ('diagnostics', DiagnosticArray, reliable))
+
+
+def start_recording(node, path):
+    """A :class:`~fusion_planner.cli.recording.TopicRecorder` of :func:`recorded_topics`.
+
+    Returns None, after one line on stderr saying why, when the ``mcap``
+    library is missing or the file or a message definition is unavailable:
+    the demo runs without a recording then.
+    """
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return TopicRecorder(node, path, recorded_topics())
+    except ImportError as err:
+        print(f"no recording: the mcap library is not importable ({err}); install the record "
+              "extra (pip install 'fusion_planner[record]')", file=sys.stderr)
+    except (OSError, DefinitionNotFound) as err:
+        print(f'no recording: {err}', file=sys.stderr)
+    return None
+
+
+def _draw(scenario, result, plot_path, gif_path):
+    """Write the picture and the animation; a failure to draw is reported, not fatal."""
+    try:
+        from fusion_planner.cli.animation import animate_episode
         from fusion_planner.cli.sim_plot import episode_title, plot_episode
     except ImportError as err:
         print(f'no picture: matplotlib is not importable ({err})', file=sys.stderr)
         return
-    try:
-        plot_path.parent.mkdir(parents=True, exist_ok=True)
-        plot_episode(scenario, result, plot_path,
-                     title='ROS 2 nodes, ' + episode_title(scenario, result))
-    except (OSError, ValueError) as err:
-        print(f'could not write {plot_path}: {err}', file=sys.stderr)
-        return
-    print(f'picture: {plot_path}', file=sys.stderr)
+    outputs = (
+        ('picture', plot_path, lambda: plot_episode(
+            scenario, result, plot_path, title='ROS 2 nodes, ' + episode_title(scenario, result))),
+        ('animation', gif_path, lambda: animate_episode(scenario, result, gif_path,
+                                                        scenario.limits.dt)))
+    for kind, path, draw in outputs:
+        if path is None:
+            continue
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            draw()
+        except (OSError, ValueError) as err:
+            print(f'could not write {path}: {err}', file=sys.stderr)
+            continue
+        print(f'{kind}: {path}', file=sys.stderr)

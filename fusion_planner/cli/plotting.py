@@ -31,7 +31,7 @@ FIGURE_INCHES = 6.0
 FIGURE_DPI = 100
 
 
-def new_figure(grid=None, inches=FIGURE_INCHES):
+def new_figure(grid=None, inches=FIGURE_INCHES, dpi=FIGURE_DPI):
     """A matplotlib Figure on an Agg canvas, shaped like the map.
 
     Parameters
@@ -40,6 +40,8 @@ def new_figure(grid=None, inches=FIGURE_INCHES):
         When given, the figure's aspect ratio follows the map's extent.
     inches : float
         Length of the longer side [inch].
+    dpi : float
+        Resolution of the canvas [dots per inch].
 
     Returns
     -------
@@ -57,7 +59,7 @@ def new_figure(grid=None, inches=FIGURE_INCHES):
             width = max(inches / ratio, 2.5)
         else:
             height = max(inches * ratio, 2.5)
-    fig = Figure(figsize=(width, height), dpi=FIGURE_DPI)
+    fig = Figure(figsize=(width, height), dpi=dpi)
     FigureCanvasAgg(fig)
     fig.add_subplot(1, 1, 1)
     return fig

@@ -3,6 +3,7 @@
 Usage::
 
     fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--json] [--plot PNG]
+        [--gif GIF]
     fusion-planner sim --random N [--seed S] [--controller NAME ...] [--jobs J] [--json]
 
 Contract:
@@ -23,7 +24,8 @@ Contract:
   ``moving_collisions``, ``episodes_with_collisions``, ``mean_time_s``,
   ``path_length_over_optimal``, ``mean_min_clearance_m``,
   ``stuck_events``, ``failures``) and ``episodes`` (one row per run).
-- ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6.
+- ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6;
+  ``--gif GIF`` (scenario only) writes it as an animation.
 - A batch reports its progress with an estimated time to completion on
   stderr.
 - Exit status: 0 the goal was reached (a batch: the batch completed), 1 the
@@ -34,15 +36,12 @@ Contract:
 import json
 import logging
 import sys
-import time
 
+from fusion_planner.cli.progress import Progress
 from fusion_planner.core.errors import PlanningError
 from fusion_planner.core.simulation import CONTROLLERS
 
 EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
-
-#: Shortest interval between two progress lines when stderr is not a terminal [s].
-PROGRESS_INTERVAL_S = 5.0
 
 
 def add_parser(subparsers):
@@ -64,22 +63,35 @@ def add_parser(subparsers):
                         help='worker processes for a batch (default 1; results do not depend on it)')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     parser.add_argument('--plot', metavar='PNG', help='draw the run (scenario only)')
+    parser.add_argument('--gif', metavar='GIF', help='animate the run (scenario only)')
     parser.set_defaults(func=run)
     return parser
 
 
 def run(args):
     """Run ``sim``; returns the exit status."""
+    core_logger = logging.getLogger('fusion_planner.core')
+    level = core_logger.level
     if not getattr(args, 'verbose', False):
-        # failures are reported in the results; the controllers' warnings would repeat them
-        logging.getLogger('fusion_planner.core.follow').setLevel(logging.ERROR)
+        # failures are reported in the results; the core's warnings (the controllers'
+        # failures) would repeat them
+        core_logger.setLevel(logging.ERROR)
+    try:
+        return _run(args)
+    finally:
+        core_logger.setLevel(level)
+
+
+def _run(args):
     try:
         controllers = _controllers(args)
         if (args.scenario is None) == (args.random is None):
             raise _BadInput('give exactly one of --scenario FILE or --random N')
         if args.random is not None:
-            if args.plot:
-                raise _BadInput('--plot draws one scenario; it cannot be used with --random')
+            for option, value in (('--plot', args.plot), ('--gif', args.gif)):
+                if value:
+                    raise _BadInput(
+                        f'{option} draws one scenario; it cannot be used with --random')
             return _run_batch(args, controllers)
         if len(controllers) != 1:
             raise _BadInput('a scenario runs one controller; give --controller once')
@@ -106,13 +118,20 @@ def _run_scenario(args, controller):
     from fusion_planner.core.simulation import run_episode
 
     scenario = load_scenario(args.scenario)
-    result = run_episode(scenario, controller, seed=args.seed, record=bool(args.plot))
+    result = run_episode(scenario, controller, seed=args.seed,
+                         record=bool(args.plot or args.gif))
     if args.plot:
         try:
             from fusion_planner.cli.sim_plot import plot_episode
             plot_episode(scenario, result, args.plot)
         except (OSError, ValueError) as err:
             raise _BadInput(f'cannot write the plot {args.plot}: {err}') from None
+    if args.gif:
+        try:
+            from fusion_planner.cli.animation import animate_episode
+            animate_episode(scenario, result, args.gif, scenario.limits.dt)
+        except (OSError, ValueError) as err:
+            raise _BadInput(f'cannot write the animation {args.gif}: {err}') from None
     summary = result.summary()
     if args.json:
         print(json.dumps(summary))
@@ -125,8 +144,9 @@ def _run_batch(args, controllers):
     from fusion_planner.core.simulation import run_batch
 
     seed = 0 if args.seed is None else args.seed
-    reporter = _Progress(args.random)
-    batch = run_batch(args.random, seed, controllers=controllers, progress=reporter,
+    reporter = Progress(args.random, 'sim', unit='scenarios')
+    batch = run_batch(args.random, seed, controllers=controllers,
+                      progress=lambda done, _total: reporter.advance(done - reporter.done),
                       workers=args.jobs)
     reporter.finish()
     if args.json:
@@ -166,41 +186,6 @@ def _num(value, unit='', digits=2):
     if value is None:
         return '-'
     return f'{value:.{digits}f}' + (f' {unit}' if unit else '')
-
-
-class _Progress:
-    """Progress with an estimated time to completion on stderr."""
-
-    def __init__(self, total):
-        self.total = total
-        self.t0 = time.monotonic()
-        self.last = -PROGRESS_INTERVAL_S
-        self.tty = sys.stderr.isatty()
-
-    def __call__(self, done, total):
-        now = time.monotonic()
-        if not self.tty and now - self.last < PROGRESS_INTERVAL_S and done < total:
-            return
-        self.last = now
-        elapsed = now - self.t0
-        eta = elapsed / done * (total - done)
-        text = (f'sim: {done}/{total} scenarios ({100 * done / total:.0f}%), '
-                f'elapsed {_clock(elapsed)}, ETA {_clock(eta)}')
-        if self.tty:
-            sys.stderr.write('\r' + text + ' ' * 4)
-        else:
-            sys.stderr.write(text + '\n')
-        sys.stderr.flush()
-
-    def finish(self):
-        if self.tty:
-            sys.stderr.write('\n')
-            sys.stderr.flush()
-
-
-def _clock(seconds):
-    seconds = int(round(seconds))
-    return f'{seconds // 60}m{seconds % 60:02d}s'
 
 
 def _one_line(err):

@@ -81,6 +81,81 @@ def episode_title(scenario, result):
             f'{result.stuck_events} stuck')
 
 
+def draw_plan(ax, result):
+    """Draw the A* plan and its key nodes of a run (nothing when it has none).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    result : EpisodeResult
+        Its ``plan_path`` (N, 2) and ``key_nodes`` (K, 2) [m, map frame];
+        the plan is dashed for a controller that does not follow it.
+    """
+    if result.plan_path is None:
+        return
+    plan = np.asarray(result.plan_path)
+    followed = result.controller in PLAN_FOLLOWERS
+    ax.plot(plan[:, 0], plan[:, 1], color=PLAN_COLOUR, lw=1.2, ls='-' if followed else '--',
+            label='A* plan' if followed else 'A* plan (not used)', zorder=5)
+    if result.key_nodes is not None and len(result.key_nodes):
+        keys = np.asarray(result.key_nodes)
+        ax.plot(keys[:, 0], keys[:, 1], ls='none', marker='o', ms=4, mfc='white',
+                mec=PLAN_COLOUR, mew=1.0, label='key nodes', zorder=5)
+
+
+def draw_trajectory(ax, trajectory):
+    """Draw the driven trajectory; returns the line (``set_data`` animates it).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    trajectory : ndarray, shape (T, 2) or (T, 3)
+        Poses ``(x, y[, yaw])`` [m, m, rad], map frame.
+
+    Returns
+    -------
+    matplotlib.lines.Line2D
+    """
+    traj = np.asarray(trajectory, dtype=float).reshape(-1, np.shape(trajectory)[-1])
+    (line,) = ax.plot(traj[:, 0], traj[:, 1], color=TRAJECTORY_COLOUR, lw=1.8,
+                      label='trajectory', zorder=6)
+    return line
+
+
+def draw_escapes(ax, points):
+    """Mark where the controller began escaping a local minimum (magenta crosses).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    points : ndarray, shape (E, 2)
+        Escape points [m], map frame; E may be 0 (the label is kept, so the
+        legend of an animation that meets its first escape later is stable).
+
+    Returns
+    -------
+    matplotlib.lines.Line2D
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    (line,) = ax.plot(points[:, 0], points[:, 1], ls='none', marker='x', ms=8, mew=2,
+                      color=ESCAPE_COLOUR, label='escape', zorder=7)
+    return line
+
+
+def draw_endpoints(ax, scenario):
+    """Draw the start (blue) and goal (red) of a scenario."""
+    ax.plot(scenario.start[0], scenario.start[1], ls='none', marker='o', ms=9,
+            color=START_COLOUR, label='start', zorder=8)
+    ax.plot(scenario.goal[0], scenario.goal[1], ls='none', marker='o', ms=9,
+            color=GOAL_COLOUR, label='goal', zorder=8)
+
+
+def add_legend(ax):
+    """The legend below the map, as in every figure of a run."""
+    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=7,
+              frameon=False, handlelength=1.5)
+
+
 def plot_episode(scenario, result, path_png, title=None):
     """Save a figure of one run.
 
@@ -97,36 +172,27 @@ def plot_episode(scenario, result, path_png, title=None):
     Returns
     -------
     matplotlib.figure.Figure
+
+    Notes
+    -----
+    Drawn: the known map (black), unknown static obstacles (green), the
+    moving obstacles' tracks with their start (faint) and end positions
+    (yellow), the A* plan with its key nodes (blue), the driven trajectory
+    (red), the escape points (magenta crosses), the start and the goal.
     """
     fig = new_figure(scenario.grid)
     ax = fig.axes[0]
     draw_grid(ax, scenario.grid)
     draw_static_obstacles(ax, scenario.unknown_obstacles)
     draw_moving_obstacles(ax, scenario, result.obstacle_tracks)
-    if result.plan_path is not None:
-        plan = np.asarray(result.plan_path)
-        followed = result.controller in PLAN_FOLLOWERS
-        ax.plot(plan[:, 0], plan[:, 1], color=PLAN_COLOUR, lw=1.2, ls='-' if followed else '--',
-                label='A* plan' if followed else 'A* plan (not used)', zorder=5)
-        if result.key_nodes is not None and len(result.key_nodes):
-            keys = np.asarray(result.key_nodes)
-            ax.plot(keys[:, 0], keys[:, 1], ls='none', marker='o', ms=4, mfc='white',
-                    mec=PLAN_COLOUR, mew=1.0, label='key nodes', zorder=5)
+    draw_plan(ax, result)
     if result.trajectory is not None and len(result.trajectory):
-        traj = result.trajectory
-        ax.plot(traj[:, 0], traj[:, 1], color=TRAJECTORY_COLOUR, lw=1.8, label='trajectory',
-                zorder=6)
+        draw_trajectory(ax, result.trajectory)
     if len(result.escape_points):
-        esc = result.escape_points
-        ax.plot(esc[:, 0], esc[:, 1], ls='none', marker='x', ms=8, mew=2, color=ESCAPE_COLOUR,
-                label='escape', zorder=7)
-    ax.plot(scenario.start[0], scenario.start[1], ls='none', marker='o', ms=9,
-            color=START_COLOUR, label='start', zorder=8)
-    ax.plot(scenario.goal[0], scenario.goal[1], ls='none', marker='o', ms=9,
-            color=GOAL_COLOUR, label='goal', zorder=8)
+        draw_escapes(ax, result.escape_points)
+    draw_endpoints(ax, scenario)
     ax.set_title(title if title is not None else episode_title(scenario, result), fontsize=8)
-    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.12), ncol=4, fontsize=7,
-              frameon=False, handlelength=1.5)
+    add_legend(ax)
     fig.tight_layout()
     fig.savefig(path_png, dpi=FIGURE_DPI)
     return fig
