@@ -126,6 +126,7 @@ class GlobalPlannerParams:
     obstacle_persistence: float = 1.0
     obstacle_mark_range: float = 3.0
     obstacle_clear_range: float = 4.0
+    obstacle_update_period: float = 0.2
     diagnostics_period: float = 1.0
 
     def __post_init__(self):
@@ -198,6 +199,9 @@ PARAMETER_SPECS = (
                   float_range(0.1, 100.0), read_only=True),
     ParameterSpec('obstacle_clear_range', 4.0, 'beams clear the cells they cross up to this [m]',
                   float_range(0.1, 100.0), read_only=True),
+    ParameterSpec('obstacle_update_period', 0.2,
+                  'scans closer in time than this to the last one used are skipped [s]',
+                  float_range(0.0, 10.0)),
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),
@@ -296,6 +300,7 @@ class GlobalPlannerNode(Node):
         self._marked_planner = None  # planner on the map plus confirmed scan obstacles
         self._poses = collections.deque(maxlen=POSE_HISTORY)  # (stamp, pose, velocity)
         self._last_now = -math.inf  # latest node-clock time seen [s]
+        self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
         guard = self._diagnostics.guard
         self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
@@ -369,7 +374,11 @@ class GlobalPlannerNode(Node):
             else self._poses[-1][1]
         ends, hit = conv.scan_to_rays(msg, tuple(pose), self._params.current.robot_frame_id,
                                       'scan')
-        if not self._layer.update(pose[:2], ends, hit, self._now_s()):
+        now = self._now_s()
+        if now - self._layer_updated < self._params.current.obstacle_update_period:
+            return  # persistence is measured in seconds: every scan is not needed
+        self._layer_updated = now
+        if not self._layer.update(pose[:2], ends, hit, now):
             return
         self._marked_planner = None
         self._components = None
@@ -413,6 +422,7 @@ class GlobalPlannerNode(Node):
                 'waiting for a fresh start pose')
             self._start = None
             self._poses.clear()
+            self._layer_updated = -math.inf
             if self._layer is not None:
                 self._layer.reset()
                 self._marked_planner = None
