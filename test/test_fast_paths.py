@@ -173,3 +173,44 @@ def test_default_improved_astar_is_within_its_weight_of_the_optimum(occupied, da
     policy = search.improved_astar()
     found = search.grid_search(padded, start, goal, policy).cost
     assert optimum - 1e-9 <= found <= (1.0 + policy.gamma) * optimum + 1e-9
+
+
+def test_planning_a_large_map_needs_no_whole_clearance_map_and_replans_on_its_preparation():
+    from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+    occupied = np.random.default_rng(3).random((400, 400)) < 0.03
+    occupied[:3, :3] = occupied[-3:, -3:] = False
+    grid = GridMap(occupied, 0.05)
+    assert occupied.size > grid_module.SMALL_MAP_CELLS
+    planner = GlobalPlanner(grid, PlannerConfig(robot_radius=0.05, safety_distance=0.05))
+    first = planner.plan(grid.world_of((0, 0)), grid.world_of((399, 399)))
+    prepared = planner._search_grid()
+    second = planner.plan(grid.world_of((399, 399)), grid.world_of((0, 0)))
+    assert planner._search_grid() is prepared  # same map and radius: reused
+    assert grid._clearance is None  # inflation, refinement and metrics worked locally
+    whole = GridMap(occupied, 0.05)
+    for result in (first, second):
+        assert result.metrics.min_clearance_m == metrics.min_clearance(whole, result.path)
+        assert result.metrics.min_clearance_m > 0.05
+
+
+@SETTINGS
+@given(occupied=occupancy(), yaw=st.sampled_from((0.0, 0.7, -2.5)),
+       seed=st.integers(0, 2 ** 31 - 1))
+def test_clearance_at_points_equals_the_whole_map(occupied, yaw, seed):
+    with _local_queries():
+        grid = GridMap(occupied, 0.25, (1.0, -2.0, yaw))
+        rng = np.random.default_rng(seed)
+        corners = grid.grid_to_world(rng.uniform(-2, np.array(occupied.shape[::-1]) + 2,
+                                                 (40, 2)))
+        got = grid.clearance_at(corners)
+        assert grid._clearance is None or not occupied.any()
+        cells = grid.cell_of(corners)
+        inside = grid.contains(cells)
+        expected = np.zeros(len(cells))
+        whole = GridMap(occupied, 0.25, (1.0, -2.0, yaw)).clearance
+        expected[inside] = whole[cells[inside, 0], cells[inside, 1]]
+        np.testing.assert_array_equal(got, expected)
+        # The frame change and its inverse agree.
+        np.testing.assert_allclose(grid.world_to_grid(corners),
+                                   grid.world_to_grid(grid.grid_to_world(
+                                       grid.world_to_grid(corners))), atol=1e-9)

@@ -138,6 +138,28 @@ def test_tolerating_the_input_margin_prunes_more(random_cases):
     assert relaxed <= strict
 
 
+@pytest.mark.parametrize('tolerate', [False, True])
+def test_window_reach_is_the_farthest_safe_node_of_each_window(random_cases, tolerate):
+    # The batched reach against one segment test per (node, later node).
+    window = refine.WINDOW_NODES
+    for grid, raw, radius, safety in random_cases[:8]:
+        gpts = grid.world_to_grid(raw)
+        steps = raster.grid_segments_clearance(grid, gpts[:-1], gpts[1:])
+        needed = refine._needed_clearance(steps, radius, safety, tolerate, window)
+        reach = refine._window_reach(grid, gpts, radius, needed)
+        last = len(raw) - 1
+        for i in range(last):
+            end = min(i + window, last)
+            safe = [j for j in range(i + 1, end + 1)
+                    if refine._is_safe(raster.segment_clearance(grid, raw[i], raw[j]), radius,
+                                       min(radius + safety, steps[i:j].min()) if tolerate
+                                       else radius + safety)]
+            if end in safe and end < last:
+                assert reach[i] == -1  # reachable past the window: looked up later
+            else:
+                assert reach[i] == (max(safe) if safe else i + 1)
+
+
 def test_staircase_in_open_map_becomes_one_segment():
     grid = GridMap(np.zeros((10, 10), bool), resolution=0.5)
     cells = [[0, 0], [0, 1], [1, 1], [1, 2], [2, 2], [2, 3], [3, 3]]

@@ -15,6 +15,8 @@ TARGETS = {
     'paper': 'fusion_planner.bench.paper',
     'movingai': 'fusion_planner.bench.movingai',
     'peers': 'fusion_planner.bench.peers',
+    'local': 'fusion_planner.bench.local',
+    'refine': 'fusion_planner.bench.refine',
 }
 
 

@@ -106,7 +106,8 @@ class GridMap:
                 f'map of {occupied.shape[1]} x {occupied.shape[0]} cells exceeds '
                 f'the limit of {max_cells} cells')
         if not _is_finite_number(resolution) or resolution <= 0:
-            raise MapError(f'map resolution must be a positive number of metres, got {resolution!r}')
+            raise MapError(
+                f'map resolution must be a positive number of metres, got {resolution!r}')
         if len(origin) != 3 or not all(_is_finite_number(v) for v in origin):
             raise MapError(f'map origin must be three finite numbers (x, y, yaw), got {origin!r}')
         self.occupied = np.ascontiguousarray(occupied, dtype=bool)
@@ -153,18 +154,23 @@ class GridMap:
             ``c <= col < c + 1``, ``r <= row < r + 1``.
         """
         pts = np.asarray(points, dtype=float)
-        dx = pts[..., 0] - self.origin[0]
-        dy = pts[..., 1] - self.origin[1]
-        col = (self._cos * dx + self._sin * dy) / self.resolution
-        row = (-self._sin * dx + self._cos * dy) / self.resolution
-        return np.stack([col, row], axis=-1)
+        out = np.subtract(pts, self.origin[:2])
+        if self.origin[2] != 0.0:
+            dx, dy = out[..., 0].copy(), out[..., 1].copy()
+            out[..., 0] = self._cos * dx + self._sin * dy
+            out[..., 1] = self._cos * dy - self._sin * dx
+        out /= self.resolution
+        return out
 
     def grid_to_world(self, grid_points):
         """Map-frame points of continuous grid coordinates ``(col, row)``."""
-        g = np.asarray(grid_points, dtype=float) * self.resolution
-        x = self.origin[0] + self._cos * g[..., 0] - self._sin * g[..., 1]
-        y = self.origin[1] + self._sin * g[..., 0] + self._cos * g[..., 1]
-        return np.stack([x, y], axis=-1)
+        out = np.multiply(grid_points, self.resolution, dtype=float)
+        if self.origin[2] != 0.0:
+            gx, gy = out[..., 0].copy(), out[..., 1].copy()
+            out[..., 0] = self._cos * gx - self._sin * gy
+            out[..., 1] = self._sin * gx + self._cos * gy
+        out += self.origin[:2]
+        return out
 
     def cell_of(self, points):
         """Cells ``(row, col)`` containing map-frame points.
@@ -260,7 +266,8 @@ class GridMap:
         """
         if not _is_finite_number(inflation_radius) or inflation_radius < 0:
             raise InvalidInput(
-                f'inflation radius must be a non-negative number of metres, got {inflation_radius!r}')
+                'inflation radius must be a non-negative number of metres, '
+                f'got {inflation_radius!r}')
         key = float(inflation_radius)
         mask = self._traversable.get(key)
         if mask is None:
@@ -412,6 +419,7 @@ class GridMap:
         """Clearance [m] of the cells containing map-frame points.
 
         Points outside the map get 0 (nothing is known to be free there).
+        Computed around the points only (:meth:`clearance_of_cells`).
 
         Parameters
         ----------
@@ -426,7 +434,7 @@ class GridMap:
         inside = self.contains(cells)
         out = np.zeros(len(cells))
         rc = cells[inside]
-        out[inside] = self.clearance[rc[:, 0], rc[:, 1]]
+        out[inside] = self.clearance_of_cells(rc)
         return out
 
 

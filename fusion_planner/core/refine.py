@@ -47,6 +47,12 @@ SAME_POINT_M = 1e-12
 #: Grid lines per axis, from the anchor, that a shortcut probe is first
 #: checked over before it is checked whole (see _farthest_safe).
 PROBE_PREFIX_CROSSINGS = 8
+#: Nodes ahead of every node whose shortcuts are all tested in one batch
+#: before the greedy pass (see _window_reach).
+WINDOW_NODES = 8
+#: A bisection between a safe and an unsafe shortcut end at most this many
+#: nodes apart tests every node between them in one batch instead.
+DENSE_GAP_NODES = 32
 
 
 def _is_finite_number(value):
@@ -113,21 +119,22 @@ def segment_is_safe(grid, a, b, robot_radius, safety_distance):
     return bool(_is_safe(raster.segment_clearance(grid, a, b), r, r + s))
 
 
-def _farthest_safe(grid, gpts, i, r, needed):
+def _farthest_safe(grid, gpts, i, r, needed, first):
     """Index of a far node reachable from node ``i`` by a safe segment.
 
     ``gpts`` are the nodes in grid coordinates. ``needed[k]`` is the
     clearance [m] the segment ``i -> i + 1 + k`` must keep. Assumes the
-    step ``i -> i + 1`` is safe. Probes ``i + 1, i + 2, i + 4, ...`` and the
-    last node in one batch (near the anchor first, then whole), takes the
-    farthest safe probe, then bisects
-    towards the next (unsafe) probe, two bisection steps per batch. The
-    result ``j`` has a safe segment ``i -> j`` and is never before the end
-    of the run of consecutive nodes reachable from ``i``.
+    segment ``i -> i + first`` is safe. Probes ``i + first, i + 2 first,
+    i + 4 first, ...`` and the last node in one batch (near the anchor
+    first, then whole), takes the farthest safe probe, then bisects towards
+    the next (unsafe) probe, two bisection steps per batch, until at most
+    :data:`DENSE_GAP_NODES` nodes are left between them, which are tested
+    together (the farthest safe one wins). The result ``j >= i + first``
+    has a safe segment ``i -> j``.
     """
     n = len(gpts)
-    probes = [i + 1]
-    step = 2
+    probes = [i + first]
+    step = 2 * first
     while i + step < n - 1:  # bounded: step doubles
         probes.append(i + step)
         step *= 2
@@ -139,22 +146,20 @@ def _farthest_safe(grid, gpts, i, r, needed):
     # on a cluttered map most long probes fail there already. Only the
     # probes that pass are tested whole, so the outcome is the same.
     needs = needed[probes - i - 1]
-    if probes[-1] - i > 2 * PROBE_PREFIX_CROSSINGS:
-        ok = _is_safe(raster.grid_segments_clearance(
-            grid, starts, gpts[probes], max_crossings=PROBE_PREFIX_CROSSINGS), r, needs)
-        ok[0] = True
+    ok = np.ones(len(probes), bool)
+    if len(probes) > 1:
+        ok[1:] = _is_safe(raster.grid_segments_clearance(
+            grid, starts[1:], gpts[probes[1:]], max_crossings=PROBE_PREFIX_CROSSINGS),
+            r, needs[1:])
         whole = np.flatnonzero(ok[1:]) + 1
-    else:
-        ok = np.ones(len(probes), bool)
-        whole = np.arange(1, len(probes))
-    if len(whole):
-        ok[whole] = _is_safe(raster.grid_segments_clearance(grid, starts[whole],
-                                                            gpts[probes[whole]]), r, needs[whole])
+        if len(whole):
+            ok[whole] = _is_safe(raster.grid_segments_clearance(
+                grid, starts[whole], gpts[probes[whole]]), r, needs[whole])
     best = int(np.flatnonzero(ok)[-1])
     if best == len(probes) - 1:
         return int(probes[best])
     lo, hi = int(probes[best]), int(probes[best + 1])
-    while hi - lo > 1:  # bounded: bisection
+    while hi - lo > DENSE_GAP_NODES:  # bounded: bisection
         # The midpoint and both possible next midpoints in one batch; the
         # same decisions as plain bisection.
         mid = (lo + hi) // 2
@@ -171,7 +176,88 @@ def _farthest_safe(grid, gpts, i, r, needed):
             hi = mid
             if hi - lo > 1:
                 lo, hi = (left, hi) if safe[1] else (lo, left)
-    return lo
+    if hi - lo <= 1:
+        return lo
+    # A short gap: every node of it in one batch, the farthest safe one.
+    ends = np.arange(lo + 1, hi)
+    safe = _is_safe(raster.grid_segments_clearance(
+        grid, np.repeat(gpts[i:i + 1], len(ends), axis=0), gpts[ends]), r, needed[ends - i - 1])
+    return int(ends[safe][-1]) if safe.any() else lo
+
+
+def _window_reach(grid, gpts, r, needed):
+    """Farthest safe node within :data:`WINDOW_NODES` of every node, in two batches.
+
+    Parameters
+    ----------
+    grid : GridMap
+    gpts : ndarray, float64, shape (N, 2)
+        The nodes in grid coordinates, N >= 2.
+    r : float
+        Robot radius [m].
+    needed : ndarray, float64, shape (N - 1, WINDOW_NODES)
+        ``needed[i, k - 1]``: the clearance [m] segment ``i -> i + k`` must
+        keep (inf past the last node).
+
+    Returns
+    -------
+    ndarray, int64, shape (N - 1,)
+        For node ``i``, with ``w = min(i + WINDOW_NODES, N - 1)`` the end of
+        its window: ``-1`` when the segment ``i -> w`` is safe and ``w`` is
+        not the last node (the reach lies beyond the window, see
+        :func:`_farthest_safe`); else the largest ``j <= w`` with a safe
+        segment ``i -> j``, or ``i + 1`` when there is none (the original
+        step).
+
+    Notes
+    -----
+    First every window end is tested (one segment per node): on open maps
+    most pass and nothing more is needed. The nodes whose window end is
+    unsafe then test every shorter segment of their window in one batch.
+    """
+    count = len(gpts) - 1
+    first = np.arange(count)
+    span = np.minimum(first + WINDOW_NODES, count) - first  # window length, >= 1
+    ends = first + span
+    safe_end = _is_safe(raster.grid_segments_clearance(grid, gpts[first], gpts[ends]),
+                        r, needed[first, span - 1])
+    reach = np.where(safe_end, np.where(ends == count, ends, -1), first + 1)
+    # The shorter segments of the windows whose end is unsafe.
+    short = np.flatnonzero(~safe_end & (span > 1))
+    k = np.arange(1, WINDOW_NODES)
+    node = np.repeat(short, WINDOW_NODES - 1)
+    offset = np.tile(k, len(short))
+    keep = offset < span[node]
+    node, offset = node[keep], offset[keep]
+    if len(node):
+        safe = _is_safe(raster.grid_segments_clearance(grid, gpts[node], gpts[node + offset]),
+                        r, needed[node, offset - 1])
+        # The largest safe offset per node.
+        farthest = np.zeros(count, np.int64)
+        np.maximum.at(farthest, node[safe], offset[safe])
+        reach[short] = np.where(farthest[short] > 0, short + farthest[short], short + 1)
+    return reach
+
+
+def _needed_clearance(step_clearance, r, s, tolerate_input_margin, width):
+    """Clearance [m] a shortcut from node ``i`` over ``k + 1`` steps must keep.
+
+    Returns shape ``(N - 1, width)`` for the ``N - 1`` steps: ``r + s``,
+    or with ``tolerate_input_margin`` the smaller of that and the smallest
+    clearance of the input steps ``i .. i + k``; inf past the last step.
+    """
+    count = len(step_clearance)
+    needed = np.full((count, width), np.inf)
+    if not tolerate_input_margin:
+        for k in range(min(width, count)):  # bounded: the window's columns
+            needed[:count - k, k] = r + s
+        return needed
+    running = np.minimum(step_clearance, r + s)
+    needed[:, 0] = running
+    for k in range(1, min(width, count)):  # bounded: the window's columns
+        running = np.minimum(running[:-1], step_clearance[k:])
+        needed[:count - k, k] = running
+    return needed
 
 
 def _prune(grid, pts, r, s, tolerate_input_margin):
@@ -179,18 +265,21 @@ def _prune(grid, pts, r, s, tolerate_input_margin):
     n = len(pts)
     gpts = grid.world_to_grid(pts)
     step_clearance = raster.grid_segments_clearance(grid, gpts[:-1], gpts[1:])
+    reach = _window_reach(grid, gpts, r,
+                          _needed_clearance(step_clearance, r, s, tolerate_input_margin,
+                                            WINDOW_NODES))
     kept = [0]
     i = 0
     while i < n - 1:  # bounded: i grows every pass
-        if tolerate_input_margin:
-            # A shortcut must keep r + s, or as much as the steps it replaces.
-            needed = np.minimum(np.minimum.accumulate(step_clearance[i:]), r + s)
-        else:
-            needed = np.full(n - 1 - i, r + s)
-        if _is_safe(step_clearance[i], r, needed[0]):
-            i = _farthest_safe(grid, gpts, i, r, needed)
-        else:
-            i += 1  # the original step: never less safe than the input
+        if reach[i] >= 0:
+            i = int(reach[i])
+        else:  # safe to the end of its window: look farther
+            if tolerate_input_margin:
+                # A shortcut must keep r + s, or as much as the steps it replaces.
+                needed = np.minimum(np.minimum.accumulate(step_clearance[i:]), r + s)
+            else:
+                needed = np.full(n - 1 - i, r + s)
+            i = _farthest_safe(grid, gpts, i, r, needed, WINDOW_NODES)
         kept.append(i)
     return np.array(kept)
 
@@ -236,16 +325,22 @@ def prune_redundant(grid, points, robot_radius, safety_distance, tolerate_input_
     to the third; keep the middle one only when that line passes closer to
     an obstacle than the safety distance (:func:`segment_is_safe` is false).
     Applied greedily, from an anchor node the path jumps to the farthest
-    later node reachable by a safe segment (found by doubling then
-    bisection, so O(log N) segment tests per kept node; never short of the
-    run of nodes the sequential triple rule would delete), keeps it and
-    repeats from there. When even the step to the next node is unsafe (the
-    search path runs inside the safety distance), that next node is kept,
-    so the original step is used and the result is never less safe than
-    the input. Collinear kept nodes are then dropped (the joined segment
-    touches the same cells). If this leaves more nodes than the input has
-    key points, the same procedure is run on the input's key points alone,
-    which cannot.
+    later node reachable by a safe segment, keeps it and repeats from
+    there. The reach of every node within its next :data:`WINDOW_NODES`
+    nodes is found first, for all nodes at once in two vectorised batches
+    (:func:`_window_reach`): on a cluttered map most jumps are that short,
+    so the greedy pass costs no segment test of its own. Only an anchor
+    whose whole window is reachable looks farther, by doubling then
+    bisection (O(log N) segment tests). This replaced a per-anchor search
+    whose cost was a handful of small numpy batches per kept node (57 ms
+    for the 759-node path of 8room_000's longest row, now 13 ms;
+    docs/BENCHMARKS.md). When no segment from a node is safe, not even the
+    step to the next node (the search path runs inside the safety
+    distance), that next node is kept, so the original step is used and the
+    result is never less safe than the input. Collinear kept nodes are then
+    dropped (the joined segment touches the same cells). If this leaves
+    more nodes than the input has key points, the same procedure is run on
+    the input's key points alone, which cannot.
 
     A search path on an inflated grid hugs the inflation, so with a
     positive safety distance many of its nodes lie inside the margin and
@@ -348,12 +443,13 @@ def _round_corners(grid, pts, r, s, spacing):
             arcs.append(arc)
             leg_starts += [q0, p]
             leg_ends += [p, q2]
-        legs = raster.segments_clearance(grid, np.array(leg_starts), np.array(leg_ends))
-        # Smallest clearance of each arc: of all its chords (metrics.min_clearance).
+        # The legs and every chord of every arc in one batch; the smallest
+        # clearance of an arc is that of its chords (metrics.min_clearance).
         sizes = np.array([len(arc) - 1 for arc in arcs])
-        starts = np.concatenate([arc[:-1] for arc in arcs])
-        ends = np.concatenate([arc[1:] for arc in arcs])
-        chords = raster.segments_clearance(grid, starts, ends)
+        starts = np.concatenate([leg_starts] + [arc[:-1] for arc in arcs])
+        ends = np.concatenate([leg_ends] + [arc[1:] for arc in arcs])
+        clearance = raster.segments_clearance(grid, starts, ends)
+        legs, chords = clearance[:len(leg_starts)], clearance[len(leg_starts):]
         got = np.minimum.reduceat(chords, np.concatenate([[0], np.cumsum(sizes)[:-1]]))
         still = []
         for index, k in enumerate(pending):
