@@ -4,7 +4,8 @@ The paper's claims (Figure 5: goal beside an obstacle, local-minimum traps;
 Figure 6: fusion with moving obstacles) are checked in a small kinematic loop
 written here: a unicycle integrated with the commands, obstacles as point
 sets sampled on circles and walls, moving circles at constant velocity. It
-does not depend on the simulation world module.
+does not depend on the simulation world module. The evasion layer
+(fusion_planner.core.evasion) is tested here too, alone and in the loop.
 """
 
 import math
@@ -14,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from fusion_planner.core import evasion
 from fusion_planner.core.apf import ApfParams
 from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
 from fusion_planner.core.follow import (
@@ -136,13 +138,16 @@ def simulate(controller, start, goal, points=np.zeros((0, 2)), movers=(), path=N
 
 
 def assert_limits(run, p):
-    """Every command within the speed, turn-rate and acceleration limits."""
+    """Every command within the speed, turn-rate and acceleration limits.
+
+    Only an evasion reverses, and no faster than REVERSE_FRACTION * max_speed.
+    """
     dv = p.max_accel * p.control_period
     dw = p.max_alpha * p.control_period
     for command, (v0, w0) in zip(run.commands, run.measured):
         assert isinstance(command, Command) and command.status in STATUSES
         assert math.isfinite(command.v) and math.isfinite(command.omega)
-        assert -EPS <= command.v <= p.max_speed + EPS
+        assert -evasion.REVERSE_FRACTION * p.max_speed - EPS <= command.v <= p.max_speed + EPS
         assert abs(command.omega) <= p.max_omega + EPS
         assert abs(command.v - v0) <= dv + EPS
         assert abs(command.omega - w0) <= dw + EPS
@@ -352,6 +357,65 @@ def test_a_person_walking_at_the_robot_is_avoided():
     assert reached(run)
     assert run.min_mover_clearance > 0
     assert_limits(run, p)
+
+
+@pytest.fixture
+def no_evasion(monkeypatch):
+    """The field controllers without the evasion layer (the field's command always kept)."""
+    monkeypatch.setattr(evasion, 'evade', lambda pose, velocity, command, *rest: (*command, False))
+
+
+@pytest.mark.parametrize('lateral', [0.0, 0.4])
+def test_a_person_walking_into_a_trapped_robot_is_evaded(lateral, request):
+    """Inside the U of Figure 5b, pinned by the field against its bottom, a person walks in.
+
+    The field alone keeps the robot in the local minimum until the person
+    (who ignores the robot) walks into it; the evasion layer gets it out of
+    the way in time.
+    """
+    p = params()
+    start = (5.4, lateral, 0.0)
+    walker = Mover(start=(2.0, lateral), velocity=(0.38, 0.0), radius=0.3)
+    run = simulate(make_controller('fusion', p), start, GOAL_U, SCENE_U, movers=[walker],
+                   duration=25.0, block=True)
+    assert run.min_mover_clearance > 0.1
+    assert run.min_static_clearance > 0 and run.blocked_steps == 0
+    assert_limits(run, p)
+    request.getfixturevalue('no_evasion')
+    field_only = simulate(make_controller('fusion', p), start, GOAL_U, SCENE_U, movers=[walker],
+                          duration=25.0, block=True)
+    assert field_only.min_mover_clearance < 0           # the contact the evasion prevents
+
+
+def evade_now(command, tracked, points=np.zeros((0, 2)), pose=(0.0, 0.0, 0.0)):
+    """evasion.evade for a robot at rest at ``pose`` that wants to go +x."""
+    return evasion.evade(np.asarray(pose, float), np.zeros(2), command, np.array([1.0, 0.0]),
+                         np.asarray(tracked, float).reshape(-1, 5), points, params())
+
+
+def test_evasion_keeps_a_safe_command():
+    walking_away = [[2.0, 0.0, 0.35, 0.0, 0.3]]
+    assert evade_now((0.5, 0.1), walking_away) == (0.5, 0.1, False)
+    assert evade_now((0.5, 0.1), np.zeros((0, 5))) == (0.5, 0.1, False)
+
+
+def test_evasion_backs_away_from_a_person_walking_at_the_robot():
+    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]])
+    assert evading
+    assert -evasion.REVERSE_FRACTION * params().max_speed - EPS <= v < 0.0
+    assert abs(omega) <= params().max_omega + EPS
+
+
+def test_evasion_does_not_back_into_a_wall():
+    wall_behind = wall((-0.3, -1.0), (-0.3, 1.0), spacing=0.02)   # 0.1 m behind the robot
+    v, _, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]], wall_behind)
+    assert evading and v >= 0.0                                 # turns and sidesteps instead
+
+
+def test_evasion_ignores_scan_points_on_the_tracked_person():
+    person = [[1.2, 0.0, -0.35, 0.0, 0.3]]
+    v, _, _ = evade_now((0.0, 0.0), person, circle((1.2, 0.0), 0.3))
+    assert v < 0.0                                              # the person is not a wall
 
 
 # -- replanning ------------------------------------------------------------

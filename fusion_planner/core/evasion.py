@@ -1,0 +1,296 @@
+"""Evasion of moving obstacles: a short look-ahead check of every field command.
+
+The improved field steers around tracked obstacles at their predicted
+positions, but a field only pushes: a robot slowed beside a wall, turning in
+place at a local minimum, or facing away from an obstacle that walks at it
+(moving obstacles ignore the robot) feels no force that makes it leave in
+time. This module checks the command a field controller chose against the
+tracked obstacles' predicted motion and replaces it when it leads into
+contact, as a velocity-space safety layer (in the spirit of the dynamic
+window: D. Fox, W. Burgard and S. Thrun, "The dynamic window approach to
+collision avoidance", IEEE Robotics & Automation Magazine 4(1), 1997).
+
+Rollout
+    The robot holds a target ``(v, omega)``, reached from the measured
+    velocity within ``max_accel`` and ``max_alpha`` (unicycle, Euler steps of
+    :data:`ROLLOUT_STEP` over :data:`HORIZON`). Each tracked obstacle goes on
+    at its velocity with its radius grown by :data:`UNCERTAINTY_RATE` per
+    second of look-ahead (it may turn: a random walk, a bounce, the end of a
+    waypoint leg).
+Check
+    A command is safe when its rollout keeps :data:`MOVING_MARGIN` from
+    every grown obstacle.
+Evasion
+    When the field's command is not safe, a fan of targets (forward speeds
+    up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
+    turn rates across ``+-max_omega``) is rolled out the same way and against
+    the static points (scan points not on a tracked obstacle): a rollout that
+    would come within :data:`STATIC_MARGIN` of them (or closer than now)
+    stops there, pinned, and one that would do so within
+    :data:`STATIC_HORIZON` is refused. The latest predicted contact wins,
+    then the least intrusion into the margin (its time integral [m s]), then
+    the most progress along the desired direction. It is the only place a
+    controller reverses: backing away is often the quickest way out of a
+    person's path, but not into a corner.
+
+Frames and units: map frame, metres, seconds, radians throughout.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fusion_planner.core.controller_base import FollowerParams
+>>> p = FollowerParams(max_speed=0.8)
+>>> pose, velocity = np.array([0.0, 0.0, 0.0]), np.zeros(2)
+>>> walker = np.array([[1.2, 0.0, -0.35, 0.0, 0.3]])     # walks at the robot
+>>> v, omega, evading = evade(pose, velocity, (0.0, 0.0), np.array([1.0, 0.0]),
+...                           walker, np.zeros((0, 2)), p)
+>>> evading, v < 0.0                                       # it backs away
+(True, True)
+"""
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from fusion_planner.core.local_geometry import points_off_circles
+
+#: Look-ahead of the check [s]: long enough to turn round (pi / max_omega
+#: plus the ramp of max_alpha) before an obstacle at half the robot's top
+#: speed closes a metre.
+HORIZON = 2.4
+
+#: Time step of the rollouts [s]: coarse enough to keep the check cheap. A
+#: robot and an obstacle closing at 1.2 m/s (the generated scenarios' top
+#: speeds) come 0.24 m closer per step, a third of their smallest combined
+#: diameter, so no contact falls between samples.
+ROLLOUT_STEP = 0.2
+
+#: Clearance [m] a safe rollout keeps from a (grown) tracked obstacle.
+MOVING_MARGIN = 0.1
+
+#: Growth [m/s] of a tracked obstacle's radius per second of look-ahead: the
+#: prediction goes on straight, the obstacle may turn.
+UNCERTAINTY_RATE = 0.1
+
+#: Clearance [m] an evasive rollout must keep from static points (or the
+#: present clearance if that is smaller: never closer than now).
+STATIC_MARGIN = 0.03
+
+#: An evasive rollout that would come too close to a static point within
+#: this time [s] is refused: longer than braking from ``max_speed`` (the
+#: check is repeated every step).
+STATIC_HORIZON = 1.0
+
+#: Fastest reverse speed of an evasion, as a fraction of ``max_speed``.
+REVERSE_FRACTION = 0.5
+
+#: Target speeds of the evasive fan, as fractions of ``max_speed``.
+SPEED_FRACTIONS = (-1.0, -0.5, 0.0, 0.25, 0.5, 0.75, 1.0)
+
+#: Target turn rates of the evasive fan, as fractions of ``max_omega``.
+TURN_FRACTIONS = (-1.0, -0.4, 0.0, 0.4, 1.0)
+
+#: Intrusions closer than this [m s] count as equal (ties go to progress).
+INTRUSION_TOLERANCE = 1e-6
+
+#: Slack [m] of the clearance comparisons (floating point only).
+CLEARANCE_EPS = 1e-9
+
+
+def _times():
+    """Rollout sample times ``(T,)`` [s]: ``ROLLOUT_STEP`` to ``HORIZON``."""
+    return ROLLOUT_STEP * np.arange(1, int(round(HORIZON / ROLLOUT_STEP)) + 1)
+
+
+def _targets(params):
+    """The evasive fan ``(C, 2)`` of target ``(v, omega)`` [m/s, rad/s]."""
+    speeds = np.array(SPEED_FRACTIONS) * params.max_speed
+    speeds = np.where(speeds < 0.0, speeds * REVERSE_FRACTION, speeds)
+    turns = np.array(TURN_FRACTIONS) * params.max_omega
+    v, w = np.meshgrid(speeds, turns, indexing='ij')
+    return np.column_stack([v.ravel(), w.ravel()])
+
+
+def rollout(pose, velocity, targets, params):
+    """Robot positions holding each target command, within the acceleration limits.
+
+    Parameters
+    ----------
+    pose : ndarray, shape (3,)
+        ``x, y, yaw`` [m, m, rad], map frame.
+    velocity : ndarray, shape (2,)
+        Measured ``v, omega`` [m/s, rad/s].
+    targets : ndarray, shape (C, 2)
+        Target ``v, omega`` [m/s, rad/s].
+    params : FollowerParams
+        ``max_accel`` and ``max_alpha`` bound the ramps.
+
+    Returns
+    -------
+    ndarray, float64, shape (C, T, 2)
+        Positions [m] at ``ROLLOUT_STEP, 2 ROLLOUT_STEP, ..., HORIZON``.
+    """
+    times = _times()
+    v0, w0 = velocity
+    v = v0 + np.clip(targets[:, :1] - v0, -params.max_accel * times, params.max_accel * times)
+    w = w0 + np.clip(targets[:, 1:] - w0, -params.max_alpha * times, params.max_alpha * times)
+    yaw = pose[2] + np.cumsum(w, axis=1) * ROLLOUT_STEP
+    x = pose[0] + np.cumsum(v * np.cos(yaw), axis=1) * ROLLOUT_STEP
+    y = pose[1] + np.cumsum(v * np.sin(yaw), axis=1) * ROLLOUT_STEP
+    return np.stack([x, y], axis=-1)
+
+
+def obstacle_gaps(paths, tracked, robot_radius):
+    """Gap [m] between each rollout sample and the nearest predicted, grown tracked obstacle.
+
+    Parameters
+    ----------
+    paths : ndarray, shape (C, T, 2)
+        Rollouts from :func:`rollout` [m].
+    tracked : ndarray, shape (K, 5)
+        ``x, y, vx, vy, radius`` [m, m, m/s, m/s, m], finite, ``K >= 1``.
+    robot_radius : float
+        [m].
+
+    Returns
+    -------
+    ndarray, float64, shape (C, T)
+        Distance from the robot's boundary to the nearest obstacle predicted
+        at constant velocity, its radius grown by ``UNCERTAINTY_RATE * t``;
+        negative: predicted contact.
+    """
+    times = _times()[:, None]                                                  # (T, 1)
+    dx = paths[:, :, 0:1] - (tracked[:, 0] + times * tracked[:, 2])            # (C, T, K)
+    dy = paths[:, :, 1:2] - (tracked[:, 1] + times * tracked[:, 3])
+    reach = robot_radius + tracked[:, 4] + UNCERTAINTY_RATE * times            # (T, K)
+    return (np.sqrt(dx * dx + dy * dy) - reach).min(axis=2)
+
+
+def static_clearance(q, paths, points, tracked, robot_radius):
+    """Present clearance and clearance along each rollout to the static points [m].
+
+    Parameters
+    ----------
+    q : ndarray, shape (2,)
+        Robot position now [m].
+    paths : ndarray, shape (C, T, 2)
+        Rollouts [m].
+    points : ndarray, shape (M, 2)
+        Sensed obstacle points [m]; only those the rollouts can reach count,
+        and those within
+        :data:`~fusion_planner.core.local_geometry.TRACKED_POINT_MARGIN` of a
+        tracked obstacle are not static.
+    tracked : ndarray, shape (K, 5)
+        Tracked obstacles ``x, y, vx, vy, radius``.
+    robot_radius : float
+        [m].
+
+    Returns
+    -------
+    now : float
+        Distance [m] from the robot's boundary to the nearest static point
+        within reach now (``inf``: none).
+    along : ndarray, shape (C, T)
+        The same at each rollout sample [m] (``inf``: none).
+    """
+    travel = paths - q
+    reach = math.sqrt(float(np.max(np.einsum('ijk,ijk->ij', travel, travel)))) \
+        + robot_radius + STATIC_MARGIN
+    d = points - q
+    points = points[np.einsum('ij,ij->i', d, d) <= reach * reach]
+    points = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
+    if len(points) == 0:
+        return math.inf, np.full(paths.shape[:2], math.inf)
+    tree = cKDTree(points)
+    now = float(tree.query(q)[0]) - robot_radius
+    nearest = tree.query(paths.reshape(-1, 2))[0].reshape(paths.shape[:2])
+    return now, nearest - robot_radius
+
+
+def _held(paths, q, blocked):
+    """Rollouts ``(C, T, 2)`` that stop at their last sample before ``blocked`` (``(C,)``).
+
+    A rollout blocked at its first sample stays at ``q``.
+    """
+    last = np.minimum(np.arange(paths.shape[1])[None, :], blocked[:, None] - 1)   # (C, T)
+    kept = np.take_along_axis(paths, np.maximum(last, 0)[..., None], axis=1)
+    return np.where(last[..., None] >= 0, kept, q)
+
+
+def _first(mask):
+    """Index of the first True along the last axis of ``mask`` (C, T); T where none."""
+    return np.where(mask.any(axis=1), mask.argmax(axis=1), mask.shape[1])
+
+
+def _relevant(q, tracked, params):
+    """The tracked obstacles that can come within the margin during the horizon."""
+    gap = np.hypot(*(tracked[:, 0:2] - q).T) - tracked[:, 4] - params.robot_radius
+    closing = params.max_speed + np.hypot(*tracked[:, 2:4].T) + UNCERTAINTY_RATE
+    return tracked[gap - MOVING_MARGIN < closing * HORIZON]
+
+
+def evade(pose, velocity, command, desired, tracked, points, params):
+    """Keep a command when it is safe; otherwise the best evasive one.
+
+    Parameters
+    ----------
+    pose : ndarray, shape (3,)
+        ``x, y, yaw`` [m, m, rad], map frame.
+    velocity : ndarray, shape (2,)
+        Measured ``v, omega`` [m/s, rad/s].
+    command : tuple of float
+        The controller's ``v, omega`` [m/s, rad/s].
+    desired : ndarray, shape (2,)
+        Unit vector the controller wants to go along (progress measure).
+    tracked : ndarray, shape (K, 5)
+        Tracked obstacles ``x, y, vx, vy, radius``, finite; ``K >= 0``.
+    points : ndarray, shape (M, 2)
+        Sensed obstacle points [m], finite; those within
+        :data:`~fusion_planner.core.local_geometry.TRACKED_POINT_MARGIN` of a
+        tracked obstacle are not static and are left out.
+    params : FollowerParams
+
+    Returns
+    -------
+    v, omega : float
+        Target command [m/s, rad/s] (the caller applies the one-step limits;
+        ``v`` may be negative, down to ``-REVERSE_FRACTION * max_speed``).
+    evading : bool
+        True when ``command`` was replaced.
+
+    Notes
+    -----
+    A candidate that would come closer to a static point than allowed stops
+    there in its rollout (it is pinned, and an obstacle may still walk into
+    it); one that would do so within :data:`STATIC_HORIZON` is refused
+    unless every candidate would. Among the others the choice is
+    lexicographic: the latest predicted contact with a (grown) tracked
+    obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
+    most progress along ``desired``.
+    """
+    q = pose[:2]
+    tracked = _relevant(q, tracked, params)
+    if len(tracked) == 0:
+        return command[0], command[1], False
+    nominal = np.array([command], dtype=float)
+    radius = params.robot_radius
+    if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), tracked, radius)) \
+            >= MOVING_MARGIN:
+        return command[0], command[1], False
+    targets = np.vstack([nominal, _targets(params)])
+    paths = rollout(pose, velocity, targets, params)
+    now, along = static_clearance(q, paths, points, tracked, radius)
+    blocked = _first(along < min(STATIC_MARGIN, now) - CLEARANCE_EPS)          # (C,)
+    allowed = blocked >= int(round(STATIC_HORIZON / ROLLOUT_STEP))
+    if not np.any(allowed):
+        allowed = blocked == np.max(blocked)
+    paths = _held(paths, q, blocked)
+    gaps = obstacle_gaps(paths, tracked, radius)
+    contact = _first(gaps < 0.0)
+    intrusion = np.maximum(MOVING_MARGIN - gaps, 0.0).sum(axis=1) * ROLLOUT_STEP
+    progress = (paths[:, -1] - q) @ desired
+    best = allowed & (contact == np.max(contact[allowed]))
+    best &= intrusion <= np.min(intrusion[best]) + INTRUSION_TOLERANCE
+    choice = int(np.argmax(np.where(best, progress, -np.inf)))
+    return float(targets[choice, 0]), float(targets[choice, 1]), True

@@ -1,0 +1,584 @@
+"""The field controllers: ``'fusion'``, ``'apf'`` and ``'classic-apf'``.
+
+One class, :class:`FieldFollower`, configured by
+:func:`~fusion_planner.core.follow.make_controller`: the classic field of
+eqs. (9)-(14) or the improved one of eqs. (15)-(17), the final goal or the
+A* key nodes as sub-goals (the paper's section 3.3), with or without
+prediction of tracked obstacles and escape from local minima. Each step
+(:meth:`FieldFollower.compute`):
+
+1. the *scene*: obstacle points thinned to one per ``point_spacing`` square
+   (so a wall's pull does not depend on the scan's angular density), plus,
+   for each tracked obstacle, the nearest surface point of its circle at
+   :data:`PREDICTION_SAMPLES` instants over ``prediction_horizon``;
+2. the *sub-goal*: key nodes are passed when reached or when a later one is
+   visible with ``sight_clearance`` to spare;
+3. the *direction*: the total force at the robot, attracted to a carrot at
+   most ``lookahead`` ahead, or the boundary tangent while escaping (see
+   :mod:`fusion_planner.core.escape`);
+4. the *command*: heading control under the speed caps (adaptive step of
+   eq. (18), approach, braking), then, with prediction, the evasion check of
+   :mod:`fusion_planner.core.evasion`, then the velocity and acceleration
+   limits.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fusion_planner.core.controller_base import FollowerParams, Observation
+>>> ctrl = FieldFollower(FollowerParams(), field='improved', use_key_nodes=False)
+>>> ctrl.set_path(np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([[3.0, 0.0]]))
+>>> obs = Observation(pose=np.zeros(3), velocity=np.zeros(2), obstacle_points=np.zeros((0, 2)),
+...                   tracked=np.zeros((0, 5)), time=0.0)
+>>> cmd = ctrl.compute(obs)
+>>> cmd.status, cmd.v > 0
+('moving', True)
+"""
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from fusion_planner.core import apf, escape, evasion
+from fusion_planner.core.controller_base import (
+    LOCAL_PLAN_POINTS, Command, ControllerBase, Observation, WindowHistory, as_path)
+from fusion_planner.core.errors import InvalidInput, PlanningError
+from fusion_planner.core.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
+from fusion_planner.core.local_geometry import (
+    braking_speed, circle_points, front_gap, points_off_circles, segments_clear, thin_points)
+from fusion_planner.core.replanning import ObstacleMemory
+
+LOGGER = logging.getLogger(__name__)
+
+#: Predicted positions per tracked obstacle over the prediction horizon
+#: (including the current one).
+PREDICTION_SAMPLES = 5
+
+#: Smallest boundary distance [m] at which a predicted (not current) position
+#: of a tracked obstacle repels: an overlap predicted seconds ahead must steer
+#: the robot, not swamp every other force with a near-infinite one.
+PREDICTED_MIN_GAP = 0.1
+
+#: Weight of the last predicted position relative to the current one (linear
+#: in between): the farther future is less certain.
+FAR_PREDICTION_WEIGHT = 0.5
+
+#: The adaptive step never slows the robot below this fraction of max_speed:
+#: eq. (18) gives a zero step at d = 0 and the robot must still be able to
+#: leave (the braking cap, not the step, is what prevents contact).
+MIN_STEP_FRACTION = 0.25
+
+#: Key nodes ahead of the current one tested for visibility on each step.
+MAX_VISIBILITY_CHECKS = 4
+
+#: Longest step [m] of the field rollout shown as the local plan.
+ROLLOUT_MAX_STEP = 0.2
+
+#: A force shorter than this has no direction: the robot stops (a minimum).
+FORCE_EPS = 1e-9
+
+
+@dataclass
+class _Scene:
+    """Obstacles of one step, prepared once."""
+
+    field_points: np.ndarray      # (M', 2) thinned points + tracked surface points [m]
+    field_velocities: np.ndarray  # (M', 2) [m/s]
+    field_weights: np.ndarray     # (M',)
+    all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
+    tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
+    nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
+
+    @property
+    def circle_centres(self):
+        """Current centres ``(K, 2)`` [m] of the tracked obstacles."""
+        return self.tracked[:, 0:2]
+
+    @property
+    def circle_radii(self):
+        """Radii ``(K,)`` [m] of the tracked obstacles."""
+        return self.tracked[:, 4]
+
+
+class FieldFollower(ControllerBase):
+    """APF-based controller: ``'fusion'``, ``'apf'`` or ``'classic-apf'``.
+
+    Parameters
+    ----------
+    params : FollowerParams
+    field : {'improved', 'classic'}
+        Eqs. (15)-(17) or eqs. (9)-(14).
+    use_key_nodes : bool
+        Key nodes as successive sub-goals (fusion) or only the final goal.
+    escape : bool
+        Escape local minima (next key node, replanning, boundary following);
+        without it a stuck robot fails at once.
+    predict : bool
+        Avoid tracked obstacles at their predicted positions over
+        ``prediction_horizon`` and check every command against their
+        predicted motion (:mod:`fusion_planner.core.evasion`); otherwise the
+        field sees them only where they are now.
+    replan : callable, optional
+        ``replan(start, goal, obstacle_points) -> (path, key_nodes)``: a new
+        global plan from ``start`` (2,) to ``goal`` (2,) [m] that also avoids
+        the remembered static obstacle points ``(M, 2)`` [m]; raises
+        :class:`~fusion_planner.core.errors.PlanningError` when there is
+        none. :class:`~fusion_planner.core.replanning.GridReplanner` is one.
+        Used only with key nodes.
+
+    Attributes
+    ----------
+    stuck_events : int
+        Local-minimum detections since the last :meth:`reset`.
+    replans : int
+        Successful replans since the last :meth:`reset`.
+
+    Raises
+    ------
+    InvalidInput
+        If ``params`` is not a FollowerParams, ``field`` is unknown or
+        ``replan`` is not callable.
+    """
+
+    def __init__(self, params, field='improved', use_key_nodes=True, escape=True, predict=True,
+                 replan=None):
+        if field not in ('improved', 'classic'):
+            raise InvalidInput(f"field must be 'improved' or 'classic', got {field!r}")
+        if replan is not None and not callable(replan):
+            raise InvalidInput(
+                'replan must be a callable (start, goal, obstacle_points) -> (path, key_nodes)')
+        self.field = field
+        self.use_key_nodes = use_key_nodes
+        self.escape = escape
+        self.predict = predict
+        self._replan = replan if use_key_nodes else None
+        super().__init__(params)
+        self._forget()
+
+    def reset(self):
+        """Forget the plan, the stuck history, the failure, the counts and the obstacle memory."""
+        super().reset()
+        self._forget()
+
+    def _forget(self):
+        self.replans = 0
+        self._memory = ObstacleMemory(self.params.point_spacing)
+
+    def _clear_state(self):
+        super()._clear_state()
+        p = self.params
+        self._index = 0
+        self._anchor = None  # start [m] of the segment leading to the current key node
+        self._progress = WindowHistory(p.stuck_window, p.control_period)  # sub-goal distances
+        self._episode = None
+        self._follow = None
+        self._best_hit = {}
+        self._last_time = None
+
+    # .. obstacles ....................................................................
+
+    def _scene(self, obs):
+        """Thin the points, predict the tracked obstacles, find the nearest obstacle ahead."""
+        p = self.params
+        q = obs.pose[:2]
+        points = obs.obstacle_points
+        if len(points) and not np.all(np.isfinite(points)):
+            points = points[np.all(np.isfinite(points), axis=1)]
+        tracked = obs.tracked
+        if len(tracked) and not np.all(np.isfinite(tracked)):
+            tracked = tracked[np.all(np.isfinite(tracked), axis=1)]
+        thinned = thin_points(points, p.point_spacing)
+        if len(thinned):
+            # only points within rho0 of the robot or of its rollout exert a force
+            reach = p.robot_radius + p.apf.rho0 + LOCAL_PLAN_POINTS * ROLLOUT_MAX_STEP
+            d = thinned - q
+            thinned = thinned[np.einsum('ij,ij->i', d, d) < reach * reach]
+        surface, velocities, weights = self._tracked_field(obs, tracked)
+        return _Scene(field_points=np.vstack([thinned, surface]),
+                      field_velocities=np.vstack([np.zeros_like(thinned), velocities]),
+                      field_weights=np.concatenate([np.ones(len(thinned)), weights]),
+                      all_points=points, tracked=tracked,
+                      nearest_ahead=self._nearest_ahead(obs.pose, thinned, tracked))
+
+    def _tracked_field(self, obs, tracked):
+        """Field points of the tracked obstacles: nearest surface points at predicted positions.
+
+        Predicted relative to the robot going on at its current velocity
+        (what matters is where the obstacle will be with respect to the
+        robot) at :data:`PREDICTION_SAMPLES` instants over
+        ``prediction_horizon`` (only now without prediction); each weighs
+        its half circumference over ``point_spacing``, fading to
+        :data:`FAR_PREDICTION_WEIGHT`. A predicted (not current) overlap is
+        not a contact yet: it repels as if :data:`PREDICTED_MIN_GAP` away.
+
+        Returns
+        -------
+        points : ndarray, shape (S * K, 2)
+            [m], map frame.
+        velocities : ndarray, shape (S * K, 2)
+            The obstacles' velocities [m/s].
+        weights : ndarray, shape (S * K,)
+        """
+        p = self.params
+        if len(tracked) == 0:
+            return np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0)
+        q, yaw = obs.pose[:2], obs.pose[2]
+        centres, velocities, radii = tracked[:, 0:2], tracked[:, 2:4], tracked[:, 4]
+        own = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
+        horizon = p.prediction_horizon if self.predict else 0.0
+        samples = PREDICTION_SAMPLES if horizon > 0 else 1
+        times = np.linspace(0.0, horizon, samples)                              # (S,)
+        future = centres[None, :, :] + times[:, None, None] * (velocities - own)[None, :, :]
+        future_radii = np.tile(radii, samples)
+        keep_off = np.where(np.repeat(times, len(tracked)) > 0.0,
+                            p.robot_radius + PREDICTED_MIN_GAP, 0.0)
+        surface = circle_points(q, future.reshape(-1, 2), future_radii, keep_off)
+        arc = np.maximum(math.pi * future_radii / p.point_spacing, 1.0)
+        fraction = times / horizon if horizon > 0 else times
+        decay = 1.0 - (1.0 - FAR_PREDICTION_WEIGHT) * fraction
+        return surface, np.tile(velocities, (samples, 1)), arc * np.repeat(decay, len(tracked))
+
+    def _nearest_ahead(self, pose, points, tracked):
+        """Boundary distance [m] to the nearest obstacle ahead (``inf``: none).
+
+        The adaptive step looks only ahead: slowing down for an obstacle
+        behind (a person catching up) would only let it run into the robot.
+        """
+        p = self.params
+        q = pose[:2]
+        heading = np.array([math.cos(pose[2]), math.sin(pose[2])])
+        nearest = math.inf
+        if len(points):
+            d = points - q
+            ahead = d @ heading > 0.0
+            if np.any(ahead):
+                nearest = math.sqrt(float(np.min(np.einsum('ij,ij->i', d[ahead], d[ahead])))) \
+                    - p.robot_radius
+        if len(tracked):
+            d = tracked[:, 0:2] - q
+            radii = tracked[:, 4]
+            ahead = d @ heading > -radii
+            if np.any(ahead):
+                gap = np.hypot(d[ahead, 0], d[ahead, 1]) - radii[ahead] - p.robot_radius
+                nearest = min(nearest, float(np.min(gap)))
+        return nearest
+
+    def _remember(self, obs, scene, force=False):
+        """Add this step's static points to the replanning memory (when due, or ``force``)."""
+        if self._replan is None or not (force or self._memory.due(obs.time)):
+            return
+        self._memory.add(obs.time, points_off_circles(scene.all_points, scene.circle_centres,
+                                                      scene.circle_radii))
+
+    # .. fields .......................................................................
+
+    def _field_goal(self, q, target):
+        """The goal the field attracts to (a carrot), given the current sub-goal.
+
+        Classic field: the sub-goal itself (eqs. (9)-(14) as written).
+        Improved field with key nodes: the point ``lookahead`` beyond the
+        robot's projection on the segment from the previous key node (or from
+        where this sub-goal was chosen) to the sub-goal, never past the
+        sub-goal; segments between key nodes are collision-free on the map,
+        so a robot pushed off one returns to it instead of cutting a corner.
+        Improved field without key nodes: the point ``lookahead`` ahead on
+        the straight line to the sub-goal. Either way ``rho_g`` of
+        eqs. (15)-(16) stays bounded far from the goal and vanishes at it.
+        """
+        lookahead = self.params.lookahead
+        if self.field == 'classic':
+            return target
+        if self.use_key_nodes and self._anchor is not None:
+            segment = target - self._anchor
+            length = math.hypot(segment[0], segment[1])
+            if length > apf.DIRECTION_EPS:
+                along = float((q - self._anchor) @ segment) / length
+                reach = min(max(along, 0.0) + lookahead, length)
+                return self._anchor + segment * (reach / length)
+        offset = target - q
+        dist = math.hypot(offset[0], offset[1])
+        if dist <= lookahead:
+            return target
+        return q + offset * (lookahead / dist)
+
+    def _force(self, q, target, scene, robot_velocity):
+        """Total force at ``q``: eq. (14) (classic field) or eqs. (10) + (15)-(17) (improved)."""
+        ap = self.params.apf
+        goal = self._field_goal(q, target)
+        force = apf.attractive_force(q, goal, ap, check=False)                      # eq. (10)
+        if self.field == 'classic':
+            return force + apf.classic_repulsive_force(                            # eq. (14)
+                q, scene.field_points, ap, scene.field_weights, check=False)
+        force = force + apf.improved_repulsive_force(                              # eqs. (15)-(16)
+            q, goal, scene.field_points, ap, scene.field_weights, check=False)
+        if robot_velocity is not None:
+            force = force + apf.velocity_repulsion(                                 # eq. (17)
+                q, robot_velocity, scene.field_points, scene.field_velocities, ap,
+                scene.field_weights, check=False)
+        return force
+
+    def _rollout(self, q, target, scene, first_direction):
+        """Field rollout from ``q`` with the adaptive step (for display)."""
+        p = self.params
+        plan = [q.copy()]
+        point = q.copy()
+        direction = first_direction
+        for _ in range(LOCAL_PLAN_POINTS):
+            if direction is None:
+                break
+            if len(scene.field_points):
+                d = scene.field_points - point
+                near = math.sqrt(float(np.min(np.einsum('ij,ij->i', d, d)))) - p.robot_radius
+            else:
+                near = math.inf
+            step = apf.adaptive_step(near, p.max_speed, p.apf)                     # eq. (18)
+            step = min(max(step, MIN_STEP_FRACTION * p.apf.l0), ROLLOUT_MAX_STEP)
+            remaining = math.hypot(*(target - point))
+            point = point + direction * min(step, remaining)
+            plan.append(point)
+            if remaining <= step:
+                break
+            force = self._force(point, target, scene, None)
+            norm = math.hypot(force[0], force[1])
+            direction = force / norm if norm > FORCE_EPS else None
+        return np.array(plan)
+
+    # .. sub-goals ....................................................................
+
+    def _advance_sub_goal(self, q, scene):
+        """Pass key nodes reached (within goal_tolerance) or behind a visible later one.
+
+        A later key node (up to :data:`MAX_VISIBILITY_CHECKS` ahead, within
+        ``visibility_range``) is visible when no obstacle point lies within
+        ``robot_radius + sight_clearance`` of the straight line to it; the
+        farthest visible one becomes the sub-goal. A key node is never passed
+        merely for being near: cutting a corner toward one that is not
+        visible would drive into the corner.
+        """
+        if not self.use_key_nodes:
+            self._index = len(self._key_nodes) - 1
+            return
+        p = self.params
+        last = len(self._key_nodes) - 1
+        for _ in range(len(self._key_nodes)):  # bounded: each pass advances or stops
+            if self._index >= last:
+                break
+            if math.hypot(*(self._key_nodes[self._index] - q)) > p.goal_tolerance:
+                break
+            self._anchor = self._key_nodes[self._index].copy()
+            self._index += 1
+        if self._index >= last:
+            return
+        later = np.arange(self._index + 1, min(last, self._index + MAX_VISIBILITY_CHECKS) + 1)
+        ends = self._key_nodes[later]
+        in_range = np.hypot(ends[:, 0] - q[0], ends[:, 1] - q[1]) <= p.visibility_range
+        if not np.any(in_range):
+            return
+        half = p.robot_radius + p.sight_clearance
+        clear = segments_clear(q, ends[in_range], scene.all_points, half)
+        if len(scene.circle_centres):
+            clear &= segments_clear(q, ends[in_range], scene.circle_centres,
+                                    half + scene.circle_radii)
+        if np.any(clear):
+            self._index = int(later[in_range][np.nonzero(clear)[0][-1]])
+            self._anchor = q.copy()
+
+    # .. stuck detection and escape ...................................................
+
+    def _on_stuck(self, obs, q, target_distance, scene):
+        """Count the event and take the next escape step; returns a failure reason or None."""
+        p = self.params
+        self.stuck_events += 1
+        self._progress.clear()
+        where = f'({q[0]:.2f}, {q[1]:.2f})'
+        if not self.escape:
+            return (f'stuck in a local minimum of the {self.field} potential field at {where} '
+                    f'(net progress below {p.stuck_progress} m in {p.stuck_window} s) '
+                    'and this controller has no escape')
+        if self._episode is None:
+            self._episode = Episode(obs.time, self._index, target_distance)
+        episode = self._episode
+        LOGGER.info('local minimum at %s (event %d); escaping', where, self.stuck_events)
+        if self.use_key_nodes and not episode.skipped and self._index < len(self._key_nodes) - 1:
+            self._index += 1  # the paper's escape: aim at the next A* key node
+            self._anchor = q.copy()
+            episode.skipped = True
+            episode.index = self._index
+            return None
+        if self._replan is not None and episode.replans < MAX_REPLANS_PER_EPISODE:
+            episode.replans += 1
+            if self._replan_now(obs, q, scene):
+                episode.index = self._index
+                return None
+        key = self._index
+        self._best_hit[key] = min(self._best_hit.get(key, math.inf), target_distance)
+        self._follow = BoundaryFollow()
+        return None
+
+    def _replan_now(self, obs, q, scene):
+        """Ask for a global plan around everything seen so far; True on success."""
+        self._remember(obs, scene, force=True)
+        goal = self._key_nodes[-1].copy()
+        try:
+            path, key_nodes = self._replan(q.copy(), goal, self._memory.points.copy())
+            path = as_path(path, 'replanned path')
+            key_nodes = as_path(key_nodes, 'replanned key_nodes')
+        except PlanningError as err:
+            LOGGER.info('replanning from (%.2f, %.2f) failed: %s', q[0], q[1], err)
+            return False
+        self._path, self._key_nodes = path, key_nodes
+        self._index = 0
+        self._anchor = q.copy()
+        self._best_hit = {}
+        self._progress.clear()
+        self._advance_sub_goal(q, scene)
+        self.replans += 1
+        LOGGER.info('replanned around %d remembered obstacle points', len(self._memory.points))
+        return True
+
+    # .. main step .....................................................................
+
+    def compute(self, obs):
+        """One control step.
+
+        Parameters
+        ----------
+        obs : Observation
+
+        Returns
+        -------
+        Command
+            ``'no_path'`` before a plan; ``'arrived'`` inside the goal
+            tolerance (braking to rest); ``'failed'`` after an escape timed out
+            (or at the first minimum without escape), until a new path or a
+            reset; otherwise ``'moving'``, or ``'stuck_escaping'`` while an
+            escape episode is open.
+
+        Raises
+        ------
+        InvalidInput
+            If ``obs`` is not an Observation.
+        """
+        if not isinstance(obs, Observation):
+            raise InvalidInput('compute needs an Observation')
+        p = self.params
+        if self._key_nodes is None:
+            return self._stop(obs, 'no_path', 'no global plan has been set')
+        if self._failure is not None:
+            return self._stop(obs, 'failed', self._failure)
+        if self._last_time is not None and obs.time < self._last_time:
+            self._progress.clear()  # the clock went back (simulation reset)
+        self._last_time = obs.time
+        q = obs.pose[:2]
+        goal_distance = math.hypot(*(self._key_nodes[-1] - q))
+        if goal_distance <= p.goal_tolerance:
+            return self._stop(obs, 'arrived', sub_goal=self._key_nodes[-1].copy())
+        scene = self._scene(obs)
+        self._remember(obs, scene)
+        self._update_sub_goal(q, scene)
+        target = self._key_nodes[self._index]
+        if self._episode is not None and obs.time - self._episode.start > p.escape_time_limit:
+            reason = (f'still stuck after {p.escape_time_limit:g} s of escape near '
+                      f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
+            return self._fail(obs, reason, target.copy())
+        direction, reason = self._escape_direction(obs, scene)
+        if reason is not None:
+            return self._fail(obs, reason, target.copy())
+        target = self._key_nodes[self._index]  # an escape step may have changed it
+        if self._follow is None:
+            yaw = obs.pose[2]
+            robot_velocity = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
+            force = self._force(q, target, scene,
+                                robot_velocity if self.field == 'improved' else None)
+            norm = math.hypot(force[0], force[1])
+            direction = force / norm if norm > FORCE_EPS else None
+            plan = self._rollout(q, target, scene, direction)
+        elif direction is not None:
+            plan = np.vstack([q, q + p.apf.l0 * direction])
+        else:
+            plan = q[None, :].copy()
+        status = 'stuck_escaping' if self._episode is not None else 'moving'
+        if direction is None:  # an exact minimum: stop; the stuck detector takes over
+            v, w = self._evade(obs, scene, (0.0, 0.0), target - q)
+        else:
+            command = self._field_command(obs, scene, direction, goal_distance)
+            v, w = self._evade(obs, scene, command, direction)
+        return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
+
+    def _update_sub_goal(self, q, scene):
+        """Advance the sub-goal; a new one resets the progress window and boundary following."""
+        before = self._index
+        self._advance_sub_goal(q, scene)
+        if self._index != before:
+            self._progress.clear()
+            self._follow = None
+            if self._episode is not None and self._index > self._episode.index:
+                self._episode = None  # passed the key node we escaped to
+
+    def _escape_direction(self, obs, scene):
+        """Boundary following and the stuck test: ``(direction, failure reason)``.
+
+        ``direction`` is the boundary-following direction (unit vector) while
+        following, else None (the field steers); ``reason`` is a failure
+        sentence when stuck without escape, else None.
+        """
+        p = self.params
+        q = obs.pose[:2]
+        target = self._key_nodes[self._index]
+        target_distance = math.hypot(*(target - q))
+        if self._follow is not None:
+            best_hit = self._best_hit.get(self._index, math.inf)
+            if not escape.may_leave(q, target, best_hit, scene.field_points, p):
+                direction = self._follow.direction(q, target, scene.field_points,
+                                                   scene.field_weights, p)
+                if direction is None:  # nothing around: head for the sub-goal
+                    direction = (target - q) / max(target_distance, apf.DIRECTION_EPS)
+                return direction, None
+            self._follow = None
+            self._progress.clear()
+        episode = self._episode
+        if (episode is not None and not episode.skipped and episode.replans == 0
+                and target_distance < episode.target_distance - p.stuck_progress):
+            self._episode = None  # progress again after boundary following
+        before = self._progress.push(obs.time, target_distance)
+        if before is None or before - target_distance >= p.stuck_progress:
+            return None, None
+        reason = self._on_stuck(obs, q, target_distance, scene)
+        if reason is not None or self._follow is None:
+            return None, reason
+        target = self._key_nodes[self._index]
+        return self._follow.direction(q, target, scene.field_points, scene.field_weights, p), None
+
+    def _field_command(self, obs, scene, direction, goal_distance):
+        """Heading control along ``direction`` under the speed caps: ``(v, omega)``.
+
+        Caps: the adaptive step of eq. (18) (floored at
+        :data:`MIN_STEP_FRACTION` of ``max_speed``), the approach cap
+        ``approach_gain * goal_distance``, and braking within the free
+        distance straight ahead.
+        """
+        p = self.params
+        step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)             # eq. (18)
+        v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
+                    p.approach_gain * goal_distance)
+        clearance = p.robot_radius + p.safety_distance
+        points = scene.all_points
+        gap = min(front_gap(obs.pose, points, np.zeros(len(points)), clearance),
+                  front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
+        v_cap = min(v_cap, braking_speed(gap, p.max_accel, p.control_period))
+        return self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
+
+    def _evade(self, obs, scene, command, desired):
+        """``command`` within the limits, or an evasive one if it runs into a tracked obstacle.
+
+        Only with prediction (see :mod:`fusion_planner.core.evasion`);
+        ``desired`` (2,) is the direction the controller wants to go.
+        """
+        if not self.predict or len(scene.tracked) == 0:
+            return self._limit(command[0], command[1], obs)
+        norm = math.hypot(desired[0], desired[1])
+        desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
+        v, w, _ = evasion.evade(obs.pose, obs.velocity, command, desired, scene.tracked,
+                                scene.all_points, self.params)
+        return self._limit(v, w, obs, v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
