@@ -1,6 +1,5 @@
 """Tests of ``fusion-planner bench movingai`` (fusion_planner.bench.movingai)."""
 
-import io
 import json
 from types import SimpleNamespace
 
@@ -147,14 +146,3 @@ def test_missing_map_beside_a_scenario_file(tmp_path, capsys):
     (tmp_path / 'tiny.map').unlink()
     status, _, err = _run(capsys, '--maps', str(tmp_path), '--no-progress')
     assert status == 2 and 'tiny.map' in err
-
-
-def test_progress_counts_rows_and_estimates():
-    stream = io.StringIO()
-    progress = movingai.Progress(10, stream)
-    progress.advance(5, force=True)
-    progress.advance(5)
-    progress.finish()
-    lines = stream.getvalue().splitlines()
-    assert lines[0].startswith('movingai: 5/10 rows (50.0%)') and 'ETA' in lines[0]
-    assert lines[-1].startswith('movingai: 10/10 rows (100.0%)')

@@ -570,3 +570,13 @@ def test_compute_is_fast_with_a_720_beam_scan_and_20_people():
         controller.compute(obs)
     per_step = (time.perf_counter() - start) / (len(observations) - 1)
     assert per_step < 5e-3, f'{per_step * 1e3:.2f} ms per compute()'
+
+
+def test_an_absurd_measured_reverse_speed_never_gives_a_faster_command():
+    params = FollowerParams()
+    controller = make_controller('fusion', params)
+    controller.set_path(np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([[5.0, 0.0]]))
+    obs = Observation(pose=np.zeros(3), velocity=np.array([-900.0, 0.0]),
+                      obstacle_points=np.zeros((0, 2)), tracked=(), time=0.0)
+    command = controller.compute(obs)
+    assert -params.max_speed <= command.v <= params.max_speed

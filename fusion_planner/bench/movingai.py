@@ -30,10 +30,10 @@ import os
 import pathlib
 import random
 import statistics
-import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 
+from fusion_planner.cli.progress import Progress
 from fusion_planner.core import search
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
@@ -58,9 +58,6 @@ DATA_ENV = 'FUSION_PLANNER_BENCHMARKS'
 ORDER_SEED = 20120601
 #: Rows per task handed to a worker process with ``--jobs`` > 1.
 CHUNK_ROWS = 25
-#: Seconds between progress lines on a terminal / in a log file.
-PROGRESS_PERIOD_TTY_S = 0.5
-PROGRESS_PERIOD_LOG_S = 30.0
 #: Failed rows listed in the text report.
 MAX_LISTED_FAILURES = 10
 
@@ -331,55 +328,6 @@ def _solve_chunk(map_path, rows, algorithms, config):
     return [{name: prepared.solve(row, table[name]) for name in algorithms} for row in rows]
 
 
-class Progress:
-    """Rows done / total, elapsed time and ETA on stderr, throttled.
-
-    Parameters
-    ----------
-    total : int
-        Rows to run.
-    stream : file, optional
-        Where to write; default ``sys.stderr`` (as it is at construction).
-    """
-
-    def __init__(self, total, stream=None):
-        self.total = total
-        self.done = 0
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = bool(hasattr(self.stream, 'isatty') and self.stream.isatty())
-        self.period = PROGRESS_PERIOD_TTY_S if self.tty else PROGRESS_PERIOD_LOG_S
-        self.t0 = time.monotonic()
-        self.last = -math.inf
-
-    def advance(self, rows, force=False):
-        """Count ``rows`` more rows done and maybe print a line."""
-        self.done += rows
-        now = time.monotonic()
-        if not (force or now - self.last >= self.period):
-            return
-        self.last = now
-        elapsed = now - self.t0
-        if self.done:
-            eta = _clock(elapsed * (self.total - self.done) / self.done)
-        else:
-            eta = '?'
-        percent = 100.0 * self.done / max(self.total, 1)
-        text = (f'movingai: {self.done}/{self.total} rows ({percent:.1f}%), '
-                f'elapsed {_clock(elapsed)}, ETA {eta}')
-        if self.tty:
-            self.stream.write('\r' + text + ' ' * 4)
-        else:
-            self.stream.write(text + '\n')
-        self.stream.flush()
-
-    def finish(self):
-        """Print the last line (and end the terminal line)."""
-        self.advance(0, force=True)
-        if self.tty:
-            self.stream.write('\n')
-            self.stream.flush()
-
-
 def run_benchmark(sets, algorithms, config=None, jobs=1, progress=None):
     """Run the algorithms on every selected row.
 
@@ -605,7 +553,7 @@ def run(args):
     folder = pathlib.Path(args.maps) if args.maps else default_data_dir()
     sets = find_scenario_sets(folder, rows_per_map, args.only)
     total = sum(len(s.rows) for s in sets)
-    progress = None if args.no_progress else Progress(total)
+    progress = None if args.no_progress else Progress(total, 'movingai', unit='rows')
     t0 = time.perf_counter()
     outcomes = run_benchmark(sets, algorithms, config, args.jobs, progress)
     if progress is not None:
@@ -628,18 +576,6 @@ def run(args):
                   f'{elapsed:.1f} s wall')
         print(format_table(summaries, failures, header))
     return EXIT_FAILED if failures else EXIT_OK
-
-
-def _clock(seconds):
-    """``1h02m03s`` / ``2m03s`` / ``3s``."""
-    seconds = int(round(seconds))
-    hours, rest = divmod(seconds, 3600)
-    minutes, secs = divmod(rest, 60)
-    if hours:
-        return f'{hours}h{minutes:02d}m{secs:02d}s'
-    if minutes:
-        return f'{minutes}m{secs:02d}s'
-    return f'{secs}s'
 
 
 def _strict(value):

@@ -70,6 +70,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from fusion_planner.bench import movingai as movingai_bench
+from fusion_planner.cli.progress import Progress
 from fusion_planner.core import metrics
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
@@ -131,9 +132,6 @@ QUICK_NAV2_SIDE_BUFFER = 10
 QUICK_MOVINGAI_ROWS = 2
 QUICK_BIG_SIDE = 200
 
-#: Seconds between progress lines on a terminal / in a log file.
-PROGRESS_PERIOD_TTY_S = 0.5
-PROGRESS_PERIOD_LOG_S = 30.0
 #: Median-time targets of issue 6.
 TARGET_IMPROVED_OVER_PYASTAR = 1.5
 TARGET_IMPROVED_LENGTH_RATIO = 1.03
@@ -813,57 +811,6 @@ def peer_available(name):
 # Running
 # ---------------------------------------------------------------------------
 
-class Progress:
-    """Tasks done / total, elapsed time and ETA on stderr, throttled.
-
-    Parameters
-    ----------
-    total : float
-        Work units to do.
-    label : str
-    stream : file, optional
-        Default ``sys.stderr`` (as it is at construction).
-    """
-
-    def __init__(self, total, label='peers', stream=None):
-        self.total = max(total, 1e-9)
-        self.done = 0.0
-        self.label = label
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = bool(hasattr(self.stream, 'isatty') and self.stream.isatty())
-        self.period = PROGRESS_PERIOD_TTY_S if self.tty else PROGRESS_PERIOD_LOG_S
-        self.t0 = time.monotonic()
-        self.last = -math.inf
-        self.status = ''
-
-    def advance(self, units, status=None, force=False):
-        """Count ``units`` more done and maybe print a line."""
-        self.done += units
-        if status is not None:
-            self.status = status
-        now = time.monotonic()
-        if not (force or now - self.last >= self.period):
-            return
-        self.last = now
-        elapsed = now - self.t0
-        fraction = min(self.done / self.total, 1.0)
-        eta = movingai_bench._clock(elapsed * (1 - fraction) / fraction) if fraction > 0 else '?'
-        text = (f'{self.label}: {100 * fraction:.1f}% {self.status}, elapsed '
-                f'{movingai_bench._clock(elapsed)}, ETA {eta}')
-        if self.tty:
-            self.stream.write('\r' + text[:150].ljust(150))
-        else:
-            self.stream.write(text + '\n')
-        self.stream.flush()
-
-    def finish(self):
-        """Print the last line (and end the terminal line)."""
-        self.advance(0, force=True)
-        if self.tty:
-            self.stream.write('\n')
-            self.stream.flush()
-
-
 def run_scenario(scenario, planners, budget_s, progress=None, unit=1.0):
     """Every planner on every pair of one scenario.
 
@@ -1260,7 +1207,7 @@ def run(args):
                 continue
         planners.append(name)
     specs = scenario_specs(suites, args)
-    progress = None if args.no_progress else Progress(len(specs))
+    progress = None if args.no_progress else Progress(len(specs), 'peers')
     scenarios, rows, extras = [], [], {}
     t0 = time.perf_counter()
     for spec in specs:

@@ -381,7 +381,8 @@ class ControllerBase:
         Acceleration limits from the measured velocity, then
         ``v_min <= v <= max_speed`` and ``|omega| <= max_omega``; a reverse
         motion (an evasion, see :mod:`fusion_planner.core.evasion`) below
-        ``v_min`` is braked at ``max_accel``.
+        ``v_min`` is braked at ``max_accel``, and never commanded faster than
+        ``max_speed`` whatever the measured velocity says.
         """
         p = self.params
         v0, w0 = obs.velocity
@@ -389,7 +390,7 @@ class ControllerBase:
         dw = p.max_alpha * p.control_period
         v = min(max(v_des, v0 - dv), v0 + dv)
         w = min(max(omega_des, w0 - dw), w0 + dw)
-        v = min(max(v, min(v_min, v0 + dv)), p.max_speed)
+        v = min(max(v, min(v_min, v0 + dv), -p.max_speed), p.max_speed)
         w = min(max(w, -p.max_omega), p.max_omega)
         return float(v), float(w)
 

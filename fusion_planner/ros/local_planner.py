@@ -133,8 +133,6 @@ FOLLOWER_PARAMETERS = {
     'goal_tolerance': ("arrival radius around the plan's end [m]", float_range(0.01, 10.0)),
     'lookahead': ('field goal at most this far ahead of the robot; pure-pursuit lookahead [m]',
                   float_range(0.05, 20.0)),
-    'switch_radius': ('fusion: a key node closer than this is passed to the next one [m]',
-                      float_range(0.01, 20.0)),
     'stuck_window': ('window of the local-minimum progress test [s]', float_range(0.1, 120.0)),
     'stuck_progress': ('net progress needed within stuck_window [m]', float_range(0.001, 10.0)),
     'escape_time_limit': ('longest local-minimum escape before failing [s]',
@@ -156,8 +154,6 @@ FOLLOWER_PARAMETERS = {
                       float_range(0.01, 5.0)),
     'visibility_range': ('later key nodes within this distance are tested for a free line of '
                          'sight [m]', float_range(0.01, 100.0)),
-    'corridor_margin': ('static points farther than robot_radius + this from the way ahead do not '
-                        'repel (doors, corridors) [m]', float_range(0.001, 10.0)),
 }
 
 #: Description and range of each :class:`~fusion_planner.core.apf.ApfParams`
