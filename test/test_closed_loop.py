@@ -122,15 +122,6 @@ def scenario_path(tmp_path_factory):
                           unknown=[UNKNOWN_BOX], moving=PEOPLE)
 
 
-@pytest.fixture(scope='module')
-def context():
-    """A fresh rclpy context for this module (no signal handlers: pytest owns Ctrl-C)."""
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
 # -- harness -----------------------------------------------------------------------
 
 class Run:

@@ -62,14 +62,6 @@ MOVING_MPS = 0.05
 
 
 @pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
-@pytest.fixture(scope='module')
 def corridor(tmp_path_factory):
     """A 9 m x 3 m walled corridor; the robot drives 6.9 m along it."""
     folder = tmp_path_factory.mktemp('faults')

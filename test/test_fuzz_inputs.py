@@ -25,14 +25,6 @@ SEED = 0
 STRATEGY_SAMPLE = 300
 
 
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
 @pytest.mark.parametrize('name', sorted(fuzz.TARGETS))
 def test_every_input_survives_fuzzing_and_the_node_still_works(context, name):
     reports = fuzz.fuzz_target(context, name, MESSAGES, SEED)

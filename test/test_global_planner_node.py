@@ -19,13 +19,11 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -101,14 +99,6 @@ def assert_collision_free(grid, path, radius=ROBOT_RADIUS):
 
 def assert_ends_at(path, point):
     assert math.dist(path[-1], point) <= RESOLUTION * math.sqrt(0.5) + 1e-6
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.shutdown(context=ctx)
 
 
 class Harness:

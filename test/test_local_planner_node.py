@@ -52,14 +52,6 @@ DDS_BAD_MESSAGES = 100
 POLL_S = 0.005
 
 
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
 class FakeRobot:
     """A node standing in for the robot and the global planner, plus the local planner."""
 

@@ -3,8 +3,6 @@
 from dataclasses import dataclass
 
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -31,14 +29,6 @@ SPECS = (
     ParameterSpec('mode', 'fast', 'speed mode', choices=('fast', 'slow')),
     ParameterSpec('count', 4, 'samples [1]', int_range(4, 16, 4), read_only=True),
 )
-
-
-@pytest.fixture(scope='module')
-def context():
-    ctx = Context()
-    rclpy.init(context=ctx)
-    yield ctx
-    rclpy.shutdown(context=ctx)
 
 
 @pytest.fixture

@@ -43,14 +43,6 @@ POLL_S = 0.005
 DDS_BAD_MESSAGES = 100
 
 
-@pytest.fixture(scope='module')
-def context():
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
-
-
 class Probe:
     """The simulator under test plus a node recording its outputs."""
 
