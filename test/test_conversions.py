@@ -308,6 +308,15 @@ def test_tracker_estimates_velocity_from_successive_poses():
     assert by_x[1] == pytest.approx([5.0, 5.0, 0.0, 0.0, 0.5])
 
 
+def test_tracker_moves_a_track_ahead_to_the_query_time():
+    tracker = conv.ObstacleTracker('map', timeout_s=1.0, smoothing=0.0)
+    for t in (0.0, 0.1):
+        tracker.update(MarkerArray(markers=[cylinder(1, 1.0 + 0.4 * t, 2.0, t=t)]), now_s=t)
+    assert tracker.obstacles(0.35)[0, :2] == pytest.approx([1.14, 2.0])  # 0.25 s after its marker
+    assert tracker.obstacles(0.05)[0, :2] == pytest.approx([1.04, 2.0])  # earlier: where it was seen
+    assert tracker.obstacles(1.05)[0, :2] == pytest.approx([1.42, 2.0])  # 0.95 s ahead
+
+
 def test_tracker_delete_deleteall_timeout_and_teleport():
     tracker = conv.ObstacleTracker('map', timeout_s=1.0, max_speed=5.0, smoothing=0.0)
     tracker.update(MarkerArray(markers=[cylinder(1, 0.0, 0.0, t=1.0), cylinder(2, 3.0, 0.0, t=1.0),

@@ -426,6 +426,7 @@ class GlobalPlannerNode(Node):
             if self._layer is not None:
                 self._layer.reset()
                 self._marked_planner = None
+                self._components = None
         self._last_now = now
 
     # -- planning ---------------------------------------------------------------
