@@ -192,23 +192,20 @@ def _one_line(err):
     return ' '.join(str(err).split())
 
 
-def _count(text):
+def _int_at_least(low, what):
+    """An argparse type: an integer >= ``low``, else a one-line usage error naming ``what``."""
     import argparse
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a positive integer, got {text!r}') from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f'expected a positive integer, got {text!r}')
-    return value
+
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < low:
+            raise argparse.ArgumentTypeError(f'expected {what}, got {text!r}')
+        return value
+    return parse
 
 
-def _seed(text):
-    import argparse
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f'expected a non-negative integer seed, got {text!r}') from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f'expected a non-negative integer seed, got {text!r}')
-    return value
+_count = _int_at_least(1, 'a positive integer')
+_seed = _int_at_least(0, 'a non-negative integer seed')

@@ -394,6 +394,22 @@ class ControllerBase:
         w = min(max(w, -p.max_omega), p.max_omega)
         return float(v), float(w)
 
+    def _checked_stop(self, obs):
+        """Validate ``obs``; the stop command when there is no path or a failure, else None.
+
+        Raises
+        ------
+        InvalidInput
+            If ``obs`` is not an Observation.
+        """
+        if not isinstance(obs, Observation):
+            raise InvalidInput('compute needs an Observation')
+        if self._key_nodes is None:
+            return self._stop(obs, 'no_path', 'no global plan has been set')
+        if self._failure is not None:
+            return self._stop(obs, 'failed', self._failure)
+        return None
+
     def _stop(self, obs, status, reason='', sub_goal=None):
         """Brake toward (0, 0) within the acceleration limits."""
         v, w = self._limit(0.0, 0.0, obs)

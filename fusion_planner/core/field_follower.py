@@ -42,7 +42,7 @@ import numpy as np
 
 from fusion_planner.core import apf, escape, evasion
 from fusion_planner.core.controller_base import (
-    LOCAL_PLAN_POINTS, Command, ControllerBase, Observation, WindowHistory, as_path)
+    LOCAL_PLAN_POINTS, Command, ControllerBase, WindowHistory, as_path)
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
 from fusion_planner.core.local_geometry import (
@@ -460,13 +460,10 @@ class FieldFollower(ControllerBase):
         InvalidInput
             If ``obs`` is not an Observation.
         """
-        if not isinstance(obs, Observation):
-            raise InvalidInput('compute needs an Observation')
+        stop = self._checked_stop(obs)
+        if stop is not None:
+            return stop
         p = self.params
-        if self._key_nodes is None:
-            return self._stop(obs, 'no_path', 'no global plan has been set')
-        if self._failure is not None:
-            return self._stop(obs, 'failed', self._failure)
         if self._last_time is not None and obs.time < self._last_time:
             self._progress.clear()  # the clock went back (simulation reset)
         self._last_time = obs.time

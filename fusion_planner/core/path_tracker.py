@@ -21,8 +21,7 @@ import math
 import numpy as np
 
 from fusion_planner.core.controller_base import (
-    LOCAL_PLAN_POINTS, Command, ControllerBase, Observation, WindowHistory)
-from fusion_planner.core.errors import InvalidInput
+    LOCAL_PLAN_POINTS, Command, ControllerBase, WindowHistory)
 from fusion_planner.core.local_geometry import resample
 
 #: Path points ahead of the current one the tracker searches for the closest.
@@ -86,13 +85,10 @@ class PathTracker(ControllerBase):
         InvalidInput
             If ``obs`` is not an Observation.
         """
-        if not isinstance(obs, Observation):
-            raise InvalidInput('compute needs an Observation')
+        stop = self._checked_stop(obs)
+        if stop is not None:
+            return stop
         p = self.params
-        if self._key_nodes is None:
-            return self._stop(obs, 'no_path', 'no global plan has been set')
-        if self._failure is not None:
-            return self._stop(obs, 'failed', self._failure)
         q = obs.pose[:2]
         goal = self._key_nodes[-1]
         goal_distance = math.hypot(*(goal - q))

@@ -1007,6 +1007,24 @@ def publish_refused(publisher, fuzzed, refused_count, wait_until):
     return refused
 
 
+def publish_all_refused(inputs, count, refused_count, wait_until):
+    """:func:`publish_refused` of ``count`` bad messages on each ``(publisher, strategy)``.
+
+    Returns
+    -------
+    dict
+        ``{topic name: messages counted refused}``.
+    """
+    return {publisher.topic_name: publish_refused(publisher, generate(strategy, count),
+                                                  refused_count, wait_until)
+            for publisher, strategy in inputs}
+
+
+def allowed_problem_lines(reasons, elapsed_s):
+    """Most WARN/ERROR lines a node may print in ``elapsed_s`` [s]: one per reason per log period."""
+    return reasons * (elapsed_s // DEFAULT_LOG_PERIOD_S + 1)
+
+
 def problem_lines(text, node):
     """The WARN, ERROR and FATAL lines of ``node``'s logger in captured console ``text``."""
     tag = f'[{node.get_logger().name}]'
