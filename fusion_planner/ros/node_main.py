@@ -34,6 +34,12 @@ def run_node(node_class, node_name, args=None):
     except InvalidInput as err:
         rclpy.logging.get_logger(node_name).fatal(f'cannot start: {err}')
         return 1
+    except RuntimeError:
+        # Ctrl-C shuts the context down under a running take (rclpy 7.1 then
+        # raises "Unable to convert call argument"); after a shutdown that is
+        # the stop we asked for, not a fault.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()

@@ -1,0 +1,34 @@
+"""run_node: a clean stop when a take fails during shutdown, a fault otherwise."""
+
+import pytest
+
+rclpy = pytest.importorskip('rclpy')
+
+from rclpy.node import Node  # noqa: E402
+
+from fusion_planner.ros import node_main  # noqa: E402
+
+
+class QuietNode(Node):
+    def __init__(self):
+        super().__init__('run_node_test')
+
+
+def spin_that_fails(shut_down_first):
+    def spin(node):
+        if shut_down_first:
+            rclpy.shutdown()  # what Ctrl-C does, under a running take
+        raise RuntimeError('Unable to convert call argument')
+    return spin
+
+
+def test_an_error_of_a_take_during_shutdown_is_a_clean_stop(monkeypatch):
+    monkeypatch.setattr(node_main.rclpy, 'spin', spin_that_fails(shut_down_first=True))
+    assert node_main.run_node(QuietNode, 'run_node_test', []) == 0
+
+
+def test_the_same_error_while_running_is_not_hidden(monkeypatch):
+    monkeypatch.setattr(node_main.rclpy, 'spin', spin_that_fails(shut_down_first=False))
+    with pytest.raises(RuntimeError):
+        node_main.run_node(QuietNode, 'run_node_test', [])
+    assert not rclpy.ok()  # run_node shut ROS down on the way out
