@@ -1,4 +1,4 @@
-"""Tests of the potential fields (fusion_planner.core.apf): eqs. (9)-(18) as properties."""
+"""Tests of the potential fields (fusion_planner.core.local_planning.apf): eqs. (9)-(18) as properties."""
 
 import math
 import time
@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fusion_planner.core import apf
-from fusion_planner.core.apf import (
+from fusion_planner.core.local_planning import apf
+from fusion_planner.core.local_planning.apf import (
     ApfParams, adaptive_step, attractive_force, classic_repulsive_force,
     improved_repulsive_force, velocity_repulsion)
 from fusion_planner.core.errors import InvalidInput

@@ -11,7 +11,7 @@ from fusion_planner.bench import paper, paper_map
 from fusion_planner.cli.bench_command import TARGETS
 from fusion_planner.cli.main import main
 from fusion_planner.core.map_files import load_map
-from fusion_planner.core.planner import PlannerConfig
+from fusion_planner.core.global_planning.planner import PlannerConfig
 
 PAPER_YAML = REPO / 'config' / 'maps' / 'paper.yaml'
 

@@ -37,7 +37,7 @@ from rclpy.node import Node  # noqa: E402
 from fusion_planner.cli import demo_command as demo  # noqa: E402
 from fusion_planner.core.grid import GridMap  # noqa: E402
 from fusion_planner.core.map_files import save_map_server  # noqa: E402
-from fusion_planner.core.scenario import load_scenario  # noqa: E402
+from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros.global_planner import GlobalPlannerParams  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parent.parent

@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 from scipy import ndimage
 
 from fusion_planner.core import grid as grid_module
-from fusion_planner.core import metrics, neighbourhood, raster, search
+from fusion_planner.core import raster
+from fusion_planner.core.global_planning import metrics, neighbourhood, search
 from fusion_planner.core.errors import NoValidPathCouldBeFound
 from fusion_planner.core.grid import GridMap
 
@@ -176,7 +177,7 @@ def test_default_improved_astar_is_within_its_weight_of_the_optimum(occupied, da
 
 
 def test_planning_a_large_map_needs_no_whole_clearance_map_and_replans_on_its_preparation():
-    from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+    from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
     occupied = np.random.default_rng(3).random((400, 400)) < 0.03
     occupied[:3, :3] = occupied[-3:, -3:] = False
     grid = GridMap(occupied, 0.05)

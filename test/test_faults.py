@@ -41,7 +41,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 from fusion_planner.cli import demo_command as demo  # noqa: E402
 from fusion_planner.core.grid import GridMap  # noqa: E402
 from fusion_planner.core.map_files import save_map_server  # noqa: E402
-from fusion_planner.core.scenario import load_scenario  # noqa: E402
+from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros.global_planner import GlobalPlannerNode  # noqa: E402
 from fusion_planner.ros.simulator import GOAL_QOS, SimulatorNode  # noqa: E402
 

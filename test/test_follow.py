@@ -1,11 +1,11 @@
-"""Closed-loop tests of the local controllers (fusion_planner.core.follow).
+"""Closed-loop tests of the local controllers (fusion_planner.core.local_planning.follow).
 
 The paper's claims (Figure 5: goal beside an obstacle, local-minimum traps;
 Figure 6: fusion with moving obstacles) are checked in a small kinematic loop
 written here: a unicycle integrated with the commands, obstacles as point
 sets sampled on circles and walls, moving circles at constant velocity. It
 does not depend on the simulation world module. The evasion layer
-(fusion_planner.core.evasion) is tested here too, alone and in the loop.
+(fusion_planner.core.local_planning.evasion) is tested here too, alone and in the loop.
 """
 
 import math
@@ -15,10 +15,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from fusion_planner.core import evasion
-from fusion_planner.core.apf import ApfParams
+from fusion_planner.core.local_planning import evasion
+from fusion_planner.core.local_planning.apf import ApfParams
 from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
-from fusion_planner.core.follow import (
+from fusion_planner.core.local_planning.follow import (
     CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
     Observation, make_controller, thin_points)
 from fusion_planner.core.grid import GridMap

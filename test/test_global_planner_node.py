@@ -34,7 +34,7 @@ from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core import raster
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.planner import GlobalPlanner
+from fusion_planner.core.global_planning.planner import GlobalPlanner
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros import fuzz
 from fusion_planner.ros.global_planner import (

@@ -12,7 +12,7 @@ import pytest
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import LaserScan
 
-from fusion_planner.core.world import Rectangle, StaticScene
+from fusion_planner.core.simulation.world import Rectangle, StaticScene
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.global_planner import GlobalPlannerNode
 from test_global_planner_node import GOAL, START, Harness, odom_msg, wall_map

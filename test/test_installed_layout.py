@@ -73,7 +73,7 @@ def test_config_params_and_scenarios_are_installed(install):
     assert 'demo.yaml' in scenarios
     assert scenarios == sorted(p.name for p in (REPO / 'config' / 'scenarios').glob('*.yaml'))
     # Scenario files name their maps relative to themselves: those must be installed too.
-    from fusion_planner.core.scenario import load_scenario
+    from fusion_planner.core.simulation.scenario import load_scenario
     scenario = load_scenario(config / 'scenarios' / 'demo.yaml')
     assert pathlib.Path(scenario.map_path).is_relative_to(config)
 

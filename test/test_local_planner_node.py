@@ -33,7 +33,7 @@ from sensor_msgs.msg import LaserScan  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
-from fusion_planner.core import apf, follow  # noqa: E402
+from fusion_planner.core.local_planning import apf, follow  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
 from fusion_planner.ros import fuzz  # noqa: E402
 from fusion_planner.ros import local_planner as lp  # noqa: E402

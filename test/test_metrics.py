@@ -1,4 +1,4 @@
-"""Tests of fusion_planner.core.metrics."""
+"""Tests of fusion_planner.core.global_planning.metrics."""
 
 import math
 
@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fusion_planner.core import metrics, raster
+from fusion_planner.core import raster
+from fusion_planner.core.global_planning import metrics
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
 

@@ -16,7 +16,7 @@ import pytest
 
 from fusion_planner.bench.movingai import OPTIMAL_TOLERANCE, PreparedMap, policies, sample_rows
 from fusion_planner.core.map_files import read_scenarios
-from fusion_planner.core.planner import PlannerConfig
+from fusion_planner.core.global_planning.planner import PlannerConfig
 
 #: Maps of the benchmark folder (file stems).
 MAPS = ('arena2', 'Berlin_0_512', 'maze512-1-0', 'random512-10-0', '8room_000')

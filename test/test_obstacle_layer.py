@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.obstacle_layer import ObstacleLayer
-from fusion_planner.core.world import Rectangle, StaticScene
+from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
+from fusion_planner.core.simulation.world import Rectangle, StaticScene
 
 RESOLUTION = 0.1  # [m]
 BEAMS = 360

@@ -5,7 +5,7 @@ import pytest
 
 from fusion_planner.cli import plotting
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 
 matplotlib = pytest.importorskip('matplotlib')
 from matplotlib.colors import to_rgb  # noqa: E402

@@ -16,7 +16,7 @@ from conftest import REPO
 rclpy = pytest.importorskip('rclpy')
 
 from fusion_planner.cli import demo_command  # noqa: E402
-from fusion_planner.core.scenario import load_scenario  # noqa: E402
+from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros.simulator import default_scenario_path  # noqa: E402
 
 #: Heading of the parameter reference in README.md.

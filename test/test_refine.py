@@ -1,4 +1,4 @@
-"""Tests of fusion_planner.core.refine: redundant nodes and smoothing."""
+"""Tests of fusion_planner.core.global_planning.refine: redundant nodes and smoothing."""
 
 import math
 
@@ -7,7 +7,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from fusion_planner.core import metrics, raster, refine, search
+from fusion_planner.core import raster
+from fusion_planner.core.global_planning import metrics, refine, search
 from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
 from fusion_planner.core.grid import GridMap
 

@@ -16,7 +16,7 @@ rclpy = pytest.importorskip('rclpy')
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 
 from fusion_planner.cli import demo_command  # noqa: E402
-from fusion_planner.core.scenario import load_scenario  # noqa: E402
+from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros import global_planner  # noqa: E402
 from fusion_planner.ros.simulator import default_scenario_path  # noqa: E402
 

@@ -1,4 +1,4 @@
-"""Tests of fusion_planner.core.scenario: the YAML schema, its validation, random scenarios."""
+"""Tests of fusion_planner.core.simulation.scenario: the YAML schema, its validation, random scenarios."""
 
 import math
 import pathlib
@@ -10,10 +10,10 @@ import yaml
 from fusion_planner.core.errors import InvalidInput, MapError
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import save_map_server
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
-from fusion_planner.core.scenario import (
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.simulation.scenario import (
     RandomScenarioConfig, ScenarioError, load_scenario, random_scenario)
-from fusion_planner.core.world import (
+from fusion_planner.core.simulation.world import (
     BounceMotion, Circle, RandomWalkMotion, Rectangle, StaticScene, WaypointMotion)
 
 SCENARIOS = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'scenarios'

@@ -3,7 +3,7 @@
 Every planner (Dijkstra, A* with 4-, 8- and 16-neighbourhoods, the improved
 A*) runs on random small maps and is compared with
 ``scipy.sparse.csgraph.dijkstra`` on a graph built here from the move rules
-alone (nothing of :mod:`fusion_planner.core.neighbourhood` is used):
+alone (nothing of :mod:`fusion_planner.core.global_planning.neighbourhood` is used):
 
 - a path is found exactly when the reference reaches the goal;
 - the optimal planners' costs equal the reference distance, the improved
@@ -25,11 +25,11 @@ from hypothesis import strategies as st
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra as csgraph_dijkstra
 
-from fusion_planner.core import metrics, search
+from fusion_planner.core.global_planning import metrics, search
 from fusion_planner.core.errors import (
     NoValidPathCouldBeFound, PlannerCancelled, PlannerTimedOut)
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 
 #: Largest side of a random map [cells].
 MAX_SIDE = 30

@@ -3,14 +3,14 @@
 A modest batch (the 200-scenario batch of docs/ALGORITHM.md is run by hand
 with ``fusion-planner sim --random 200 --seed 0 --json``), plus the generated
 scenarios on which a moving obstacle used to walk into the slowed or
-wall-pinned robot before the evasion layer (fusion_planner.core.evasion,
+wall-pinned robot before the evasion layer (fusion_planner.core.local_planning.evasion,
 issue 3). Kept in its own file: it takes about a minute on one core.
 """
 
 import pytest
 
-from fusion_planner.core.scenario import random_scenario
-from fusion_planner.core.simulation import run_batch, run_episode
+from fusion_planner.core.simulation.scenario import random_scenario
+from fusion_planner.core.simulation.episodes import run_batch, run_episode
 
 #: Size and seed of the in-suite random batch.
 BATCH_SIZE = 30

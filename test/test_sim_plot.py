@@ -14,8 +14,8 @@ import yaml
 from fusion_planner.cli import sim_plot
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import save_map_server
-from fusion_planner.core.scenario import load_scenario
-from fusion_planner.core.simulation import EpisodeResult
+from fusion_planner.core.simulation.scenario import load_scenario
+from fusion_planner.core.simulation.episodes import EpisodeResult
 
 matplotlib = pytest.importorskip('matplotlib')
 from matplotlib.colors import to_rgb  # noqa: E402

@@ -1,7 +1,7 @@
 """Closed-loop tests: the paper's claims (Figures 5-6), determinism, batches.
 
-These run the real controllers of fusion_planner.core.follow in the simulated
-world of fusion_planner.core.world on the scenarios of config/scenarios.
+These run the real controllers of fusion_planner.core.local_planning.follow in the simulated
+world of fusion_planner.core.simulation.world on the scenarios of config/scenarios.
 """
 
 import dataclasses
@@ -13,8 +13,8 @@ import pytest
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.scenario import load_scenario, scenario_from_dict
-from fusion_planner.core.simulation import (
+from fusion_planner.core.simulation.scenario import load_scenario, scenario_from_dict
+from fusion_planner.core.simulation.episodes import (
     CONTROLLERS, batch_seeds, run_batch, run_episode, summarise)
 
 SCENARIOS = pathlib.Path(__file__).resolve().parent.parent / 'config' / 'scenarios'

@@ -27,7 +27,7 @@ from sensor_msgs.msg import LaserScan  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
-from fusion_planner.core.scenario import load_scenario  # noqa: E402
+from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
 from fusion_planner.ros import fuzz  # noqa: E402
 from fusion_planner.ros import simulator as sim  # noqa: E402

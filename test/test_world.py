@@ -1,4 +1,4 @@
-"""Tests of fusion_planner.core.world: kinematics, laser, collisions, obstacles, determinism."""
+"""Tests of fusion_planner.core.simulation.world: kinematics, laser, collisions, obstacles, determinism."""
 
 import math
 
@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.world import (
+from fusion_planner.core.simulation.world import (
     BounceMotion, Circle, MovingObstacle, RandomWalkMotion, Rectangle, RobotSpec, ScanConfig,
     StaticScene, WaypointMotion, World, integrate_unicycle, ray_box_distances,
     ray_circle_distances, ray_grid_distances, rasterise_obstacles)

@@ -8,10 +8,10 @@ and the simulated-over-wall time of ``fusion-planner demo`` (the three ROS
 
 Notes
 -----
-- The scene: :func:`~fusion_planner.core.scenario.random_scenario` of a
+- The scene: :func:`~fusion_planner.core.simulation.scenario.random_scenario` of a
   :data:`SIZE_M` m square map with :data:`MOVING_OBSTACLES` moving obstacles,
   a :data:`BEAMS`-beam laser and a control period of 1 / :data:`CONTROL_RATE_HZ`;
-  the robot drives it in closed loop (:class:`~fusion_planner.core.world.World`),
+  the robot drives it in closed loop (:class:`~fusion_planner.core.simulation.world.World`),
   over consecutive seeds until ``--steps`` control steps were timed, so the
   steps cover driving, avoiding, escaping and arriving.
 - The inputs are built as ``local_planner`` builds them (read, not
@@ -48,11 +48,11 @@ import numpy as np
 
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
-from fusion_planner.core import follow
+from fusion_planner.core.local_planning import follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
-from fusion_planner.core.scenario import Limits, RandomScenarioConfig, random_scenario
-from fusion_planner.core.simulation import exact_ends, plan_on_known_map
-from fusion_planner.core.world import ScanConfig, World
+from fusion_planner.core.simulation.scenario import Limits, RandomScenarioConfig, random_scenario
+from fusion_planner.core.simulation.episodes import exact_ends, plan_on_known_map
+from fusion_planner.core.simulation.world import ScanConfig, World
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 

@@ -13,8 +13,8 @@ Notes
 - Data: N. Sturtevant, "Benchmarks for Grid-Based Pathfinding", IEEE TCIAIG
   4(2):144-148, 2012 (https://www.movingai.com/benchmarks/grids.html, ODC-BY).
   Their ``optimal_length`` is the octile length without corner cutting,
-  exactly the 8-neighbourhood cost model of :mod:`fusion_planner.core.search`.
-- Time is the wall time of :func:`~fusion_planner.core.search.grid_search`
+  exactly the 8-neighbourhood cost model of :mod:`fusion_planner.core.global_planning.search`.
+- Time is the wall time of :func:`~fusion_planner.core.global_planning.search.grid_search`
   alone (the map is prepared once per map, as a planner bound to one map
   does). Rows run in a shuffled order so that the ETA shown on stderr is
   unbiased; the results do not depend on the order.
@@ -34,11 +34,11 @@ import time
 from dataclasses import asdict, dataclass, field, replace
 
 from fusion_planner.cli.progress import Progress
-from fusion_planner.core import search
+from fusion_planner.core.global_planning import search
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.map_files import load_movingai, movingai_cell, read_scenarios
-from fusion_planner.core.planner import PlannerConfig
+from fusion_planner.core.global_planning.planner import PlannerConfig
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 

@@ -37,7 +37,7 @@ from fusion_planner.cli.plotting import plan_title, plot_plan
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.map_files import load_map
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 
 #: Default number of timed plans per algorithm.
 DEFAULT_REPEATS = 21

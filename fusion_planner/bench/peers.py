@@ -71,12 +71,12 @@ import numpy as np
 
 from fusion_planner.bench import movingai as movingai_bench
 from fusion_planner.cli.progress import Progress
-from fusion_planner.core import metrics
+from fusion_planner.core.global_planning import metrics
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import load_movingai, movingai_cell, read_scenarios
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -625,7 +625,7 @@ class _Ours:
         Its grid path is checked like every planner's; the any-angle path
         that refinement made of it is checked here: every cell it touches
         must have a clearance above the robot radius
-        (:func:`~fusion_planner.core.metrics.min_clearance`).
+        (:func:`~fusion_planner.core.global_planning.metrics.min_clearance`).
         """
         return self.last.metrics.min_clearance_m > self.planner.config.robot_radius
 

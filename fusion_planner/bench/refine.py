@@ -1,9 +1,9 @@
 """Refinement speed: redundant-node removal and smoothing of search paths.
 
 Plans an A*-8 path (no refinement) on a few maps, then times
-:func:`~fusion_planner.core.refine.prune_redundant` (with the planner's
-``tolerate_input_margin=True``), :func:`~fusion_planner.core.refine.smooth_path`
-and :func:`~fusion_planner.core.metrics.min_clearance` of the result, the
+:func:`~fusion_planner.core.global_planning.refine.prune_redundant` (with the planner's
+``tolerate_input_margin=True``), :func:`~fusion_planner.core.global_planning.refine.smooth_path`
+and :func:`~fusion_planner.core.global_planning.metrics.min_clearance` of the result, the
 steps :meth:`GlobalPlanner.plan` adds after the search.
 
 Notes
@@ -25,11 +25,11 @@ import time
 
 from fusion_planner.bench import paper_map, peers
 from fusion_planner.bench.movingai import _strict, default_data_dir
-from fusion_planner.core import metrics, refine
+from fusion_planner.core.global_planning import metrics, refine
 from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import load_movingai, movingai_cell, read_scenarios
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 

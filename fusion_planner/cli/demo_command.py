@@ -57,8 +57,8 @@ import numpy as np
 from fusion_planner.cli.progress import eta_s, format_duration
 from fusion_planner.cli.recording import DefinitionNotFound, TopicRecorder
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.scenario import load_scenario
-from fusion_planner.core.simulation import follower_params
+from fusion_planner.core.simulation.scenario import load_scenario
+from fusion_planner.core.simulation.episodes import follower_params
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -144,7 +144,7 @@ def node_parameters(scenario, scenario_path, real_time_factor):
         ``{node name: {parameter: value}}``; values typed as the nodes
         declare them (floats stay floats). The planners run on simulated time;
         the robot radius, speed limits and follower tuning come from the
-        scenario (:func:`~fusion_planner.core.simulation.follower_params`), the
+        scenario (:func:`~fusion_planner.core.simulation.episodes.follower_params`), the
         control and simulation rates from its ``limits.dt``.
 
     Raises
@@ -354,8 +354,8 @@ class RunRecorder:
             return self.sim_time, self.distance_to_goal(), int(self.sim_status.get('collisions', 0))
 
     def result(self, reached, failure):
-        """An :class:`~fusion_planner.core.simulation.EpisodeResult` of the run (for the figure)."""
-        from fusion_planner.core.simulation import EpisodeResult
+        """An :class:`~fusion_planner.core.simulation.episodes.EpisodeResult` of the run (for the figure)."""
+        from fusion_planner.core.simulation.episodes import EpisodeResult
         from fusion_planner.ros.local_planner import key_nodes_of
 
         with self._lock:

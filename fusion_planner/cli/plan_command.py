@@ -43,7 +43,7 @@ from fusion_planner.core.errors import (
     GoalOutsideMapBounds, InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut,
     PlanningError, StartOutsideMapBounds)
 from fusion_planner.core.map_files import load_map, movingai_cell
-from fusion_planner.core.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 
 EXIT_OK, EXIT_NO_PATH, EXIT_BAD_INPUT = 0, 1, 2
 

@@ -39,7 +39,7 @@ import sys
 
 from fusion_planner.cli.progress import Progress
 from fusion_planner.core.errors import PlanningError
-from fusion_planner.core.simulation import CONTROLLERS
+from fusion_planner.core.simulation.episodes import CONTROLLERS
 
 EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -114,8 +114,8 @@ def _controllers(args):
 
 
 def _run_scenario(args, controller):
-    from fusion_planner.core.scenario import load_scenario
-    from fusion_planner.core.simulation import run_episode
+    from fusion_planner.core.simulation.scenario import load_scenario
+    from fusion_planner.core.simulation.episodes import run_episode
 
     scenario = load_scenario(args.scenario)
     result = run_episode(scenario, controller, seed=args.seed,
@@ -141,7 +141,7 @@ def _run_scenario(args, controller):
 
 
 def _run_batch(args, controllers):
-    from fusion_planner.core.simulation import run_batch
+    from fusion_planner.core.simulation.episodes import run_batch
 
     seed = 0 if args.seed is None else args.seed
     reporter = Progress(args.random, 'sim', unit='scenarios')

@@ -12,8 +12,8 @@ crosses. matplotlib is imported inside the functions
 import numpy as np
 
 from fusion_planner.cli.plotting import FIGURE_DPI, draw_grid, new_figure
-from fusion_planner.core.simulation import PLAN_FOLLOWERS
-from fusion_planner.core.world import Circle, Rectangle
+from fusion_planner.core.simulation.episodes import PLAN_FOLLOWERS
+from fusion_planner.core.simulation.world import Circle, Rectangle
 
 #: Colours of the layers (paper's Figure 6 where it gives them).
 UNKNOWN_OBSTACLE_COLOUR = '#2ca02c'

@@ -54,7 +54,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from fusion_planner.core import raster
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.world import integrate_unicycle
+from fusion_planner.core.simulation.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S, RateLimitedLogger
 

@@ -20,7 +20,7 @@ Topics (relative names, so a namespace or a remap applies):
   ``robot_frame_id``: the laser at the robot centre) in, with
   ``mark_obstacles``: obstacles the map does not show are learnt from the
   returns (marked once seen for ``obstacle_persistence``, cleared when a
-  beam passes through them again; :class:`~fusion_planner.core.obstacle_layer.ObstacleLayer`),
+  beam passes through them again; :class:`~fusion_planner.core.global_planning.obstacle_layer.ObstacleLayer`),
   placed with the odometry pose of the scan's stamp. Every plan avoids the
   confirmed ones, and a plan they block is replaced at once.
 - ``get_plan`` (nav_msgs/srv/GetPlan): plans between the request's poses
@@ -65,8 +65,8 @@ from fusion_planner.core.errors import GoalOccupied, InvalidInput, PlanningError
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import DEFAULT_OCCUPIED_THRESHOLD
-from fusion_planner.core.obstacle_layer import ObstacleLayer
-from fusion_planner.core.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
+from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range

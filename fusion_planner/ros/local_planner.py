@@ -1,8 +1,8 @@
 """ROS 2 node wrapping the fusion local planner (paper section 3.3).
 
-The node is an adapter around :func:`fusion_planner.core.follow.make_controller`:
+The node is an adapter around :func:`fusion_planner.core.local_planning.follow.make_controller`:
 it turns the global plan, odometry, laser scans and tracked moving obstacles
-into a :class:`~fusion_planner.core.follow.Observation`, calls the
+into a :class:`~fusion_planner.core.local_planning.follow.Observation`, calls the
 controller at a fixed rate on the node clock (sim time under
 ``use_sim_time``), and publishes the command.
 
@@ -59,7 +59,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profi
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
-from fusion_planner.core import apf, follow
+from fusion_planner.core.local_planning import apf, follow
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
@@ -76,7 +76,7 @@ PLAN_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 CMD_VEL_DEPTH = 10
 #: Queue depth of ``local_plan`` and ``obstacles`` [messages].
 DEFAULT_DEPTH = 10
-#: Prefix of the parameters that fill :class:`~fusion_planner.core.apf.ApfParams`.
+#: Prefix of the parameters that fill :class:`~fusion_planner.core.local_planning.apf.ApfParams`.
 APF_PREFIX = 'apf_'
 #: A node-clock step backwards larger than this [s] is a clock reset.
 CLOCK_JUMP_TOLERANCE_S = 1e-3
@@ -122,7 +122,7 @@ NODE_PARAMETERS = (
      float_range(0.0, 60.0), True, ()),
 )
 
-#: Description and range of each :class:`~fusion_planner.core.follow.FollowerParams`
+#: Description and range of each :class:`~fusion_planner.core.local_planning.follow.FollowerParams`
 #: field declared as a parameter of the same name. ``apf`` (below) and
 #: ``control_period`` (``1 / control_rate``) are not declared.
 FOLLOWER_PARAMETERS = {
@@ -156,7 +156,7 @@ FOLLOWER_PARAMETERS = {
                          'sight [m]', float_range(0.01, 100.0)),
 }
 
-#: Description and range of each :class:`~fusion_planner.core.apf.ApfParams`
+#: Description and range of each :class:`~fusion_planner.core.local_planning.apf.ApfParams`
 #: field, declared as ``apf_<field>``; its ``robot_radius`` is ``robot_radius``.
 APF_PARAMETERS = {
     'k_att': ('attraction gain, eqs. (9)-(10) [force/m]', float_range(1e-6, 1e6)),
@@ -211,7 +211,7 @@ def _check(params):
 
 
 def _follower_params(params):
-    """The :class:`~fusion_planner.core.follow.FollowerParams` these values describe.
+    """The :class:`~fusion_planner.core.local_planning.follow.FollowerParams` these values describe.
 
     The control period is ``1 / control_rate``; the APF robot radius is
     ``robot_radius``.

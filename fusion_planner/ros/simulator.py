@@ -1,7 +1,7 @@
 """ROS 2 node running the headless closed-loop world of a scenario file.
 
-The node is an adapter around :class:`fusion_planner.core.world.World`: it
-loads a scenario (:func:`fusion_planner.core.scenario.load_scenario`),
+The node is an adapter around :class:`fusion_planner.core.simulation.world.World`: it
+loads a scenario (:func:`fusion_planner.core.simulation.scenario.load_scenario`),
 integrates the latest velocity command at ``rate`` steps per simulated
 second, and publishes what the robot and the planners see. It is the clock
 source of the run: the simulated time goes out on ``clock``, and the other
@@ -67,8 +67,8 @@ from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.scenario import load_scenario
-from fusion_planner.core.world import World
+from fusion_planner.core.simulation.scenario import load_scenario
+from fusion_planner.core.simulation.world import World
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
@@ -216,9 +216,9 @@ def scan_to_msg(scan, config, frame_id, stamp, scan_period):
 
     Parameters
     ----------
-    scan : fusion_planner.core.world.LaserScan
+    scan : fusion_planner.core.simulation.world.LaserScan
         Beam angles (n,) [rad], robot frame, increasing; ranges (n,) [m].
-    config : fusion_planner.core.world.ScanConfig
+    config : fusion_planner.core.simulation.world.ScanConfig
     frame_id : str
         The robot frame (the laser sits at the robot centre).
     stamp : builtin_interfaces.msg.Time
@@ -261,7 +261,7 @@ class SimulatorNode(Node):
     ------
     InvalidInput
         Bad start-up parameters, or a scenario file that cannot be loaded
-        (:class:`~fusion_planner.core.scenario.ScenarioError`,
+        (:class:`~fusion_planner.core.simulation.scenario.ScenarioError`,
         :class:`~fusion_planner.core.errors.MapError`).
 
     Attributes

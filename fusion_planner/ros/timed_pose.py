@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from fusion_planner.core.world import integrate_unicycle
+from fusion_planner.core.simulation.world import integrate_unicycle
 
 
 def pose_at(history, t, max_gap):

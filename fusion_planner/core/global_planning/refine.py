@@ -27,7 +27,8 @@ import math
 
 import numpy as np
 
-from fusion_planner.core import metrics, raster
+from fusion_planner.core import raster
+from fusion_planner.core.global_planning import metrics
 from fusion_planner.core.errors import InvalidInput
 
 _LOG = logging.getLogger(__name__)

@@ -31,13 +31,13 @@ each, and their public names are re-exported here:
 =========================================  ====================================================
 module                                     what
 =========================================  ====================================================
-:mod:`~fusion_planner.core.controller_base`  parameters, observation, command, limits, steering
-:mod:`~fusion_planner.core.field_follower`   the field controllers (scene, fields, sub-goals)
-:mod:`~fusion_planner.core.escape`           local minima: episodes, boundary following
-:mod:`~fusion_planner.core.replanning`       obstacle memory and the grid replanner
-:mod:`~fusion_planner.core.evasion`          look-ahead check against moving obstacles
-:mod:`~fusion_planner.core.path_tracker`     the ``'astar-track'`` baseline
-:mod:`~fusion_planner.core.local_geometry`   small geometry helpers
+:mod:`~fusion_planner.core.local_planning.controller_base`  parameters, observation, command, limits, steering
+:mod:`~fusion_planner.core.local_planning.field_follower`   the field controllers (scene, fields, sub-goals)
+:mod:`~fusion_planner.core.local_planning.escape`           local minima: episodes, boundary following
+:mod:`~fusion_planner.core.local_planning.replanning`       obstacle memory and the grid replanner
+:mod:`~fusion_planner.core.local_planning.evasion`          look-ahead check against moving obstacles
+:mod:`~fusion_planner.core.local_planning.path_tracker`     the ``'astar-track'`` baseline
+:mod:`~fusion_planner.core.local_planning.local_geometry`   small geometry helpers
 =========================================  ====================================================
 
 The command pipeline of the field controllers (:class:`FollowerParams`
@@ -75,13 +75,13 @@ Examples
 ('moving', True, True)
 """
 
-from fusion_planner.core.controller_base import (
+from fusion_planner.core.local_planning.controller_base import (
     STATUSES, Command, Controller, FollowerParams, Observation)
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.field_follower import FieldFollower
-from fusion_planner.core.local_geometry import thin_points, wrap_angle
-from fusion_planner.core.path_tracker import PathTracker
-from fusion_planner.core.replanning import GridReplanner
+from fusion_planner.core.local_planning.field_follower import FieldFollower
+from fusion_planner.core.local_planning.local_geometry import thin_points, wrap_angle
+from fusion_planner.core.local_planning.path_tracker import PathTracker
+from fusion_planner.core.local_planning.replanning import GridReplanner
 
 __all__ = ['CONTROLLER_NAMES', 'STATUSES', 'Command', 'Controller', 'FieldFollower',
            'FollowerParams', 'GridReplanner', 'Observation', 'PathTracker', 'make_controller',

@@ -38,7 +38,7 @@ Frames and units: map frame, metres, seconds, radians throughout.
 Examples
 --------
 >>> import numpy as np
->>> from fusion_planner.core.controller_base import FollowerParams
+>>> from fusion_planner.core.local_planning.controller_base import FollowerParams
 >>> p = FollowerParams(max_speed=0.8)
 >>> pose, velocity = np.array([0.0, 0.0, 0.0]), np.zeros(2)
 >>> walker = np.array([[1.2, 0.0, -0.35, 0.0, 0.3]])     # walks at the robot
@@ -53,7 +53,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from fusion_planner.core.local_geometry import points_off_circles
+from fusion_planner.core.local_planning.local_geometry import points_off_circles
 
 #: Look-ahead of the check [s]: long enough to turn round (pi / max_omega
 #: plus the ramp of max_alpha) before an obstacle at half the robot's top
@@ -179,7 +179,7 @@ def static_clearance(q, paths, points, tracked, robot_radius):
     points : ndarray, shape (M, 2)
         Sensed obstacle points [m]; only those the rollouts can reach count,
         and those within
-        :data:`~fusion_planner.core.local_geometry.TRACKED_POINT_MARGIN` of a
+        :data:`~fusion_planner.core.local_planning.local_geometry.TRACKED_POINT_MARGIN` of a
         tracked obstacle are not static.
     tracked : ndarray, shape (K, 5)
         Tracked obstacles ``x, y, vx, vy, radius``.
@@ -247,7 +247,7 @@ def evade(pose, velocity, command, desired, tracked, points, params):
         Tracked obstacles ``x, y, vx, vy, radius``, finite; ``K >= 0``.
     points : ndarray, shape (M, 2)
         Sensed obstacle points [m], finite; those within
-        :data:`~fusion_planner.core.local_geometry.TRACKED_POINT_MARGIN` of a
+        :data:`~fusion_planner.core.local_planning.local_geometry.TRACKED_POINT_MARGIN` of a
         tracked obstacle are not static and are left out.
     params : FollowerParams
 

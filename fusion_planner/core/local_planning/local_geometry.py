@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from fusion_planner.core import apf
+from fusion_planner.core.local_planning import apf
 
 #: Scan points closer than this [m] to a tracked obstacle's boundary belong
 #: to it (they are not static).

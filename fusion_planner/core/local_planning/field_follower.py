@@ -1,7 +1,7 @@
 """The field controllers: ``'fusion'``, ``'apf'`` and ``'classic-apf'``.
 
 One class, :class:`FieldFollower`, configured by
-:func:`~fusion_planner.core.follow.make_controller`: the classic field of
+:func:`~fusion_planner.core.local_planning.follow.make_controller`: the classic field of
 eqs. (9)-(14) or the improved one of eqs. (15)-(17), the final goal or the
 A* key nodes as sub-goals (the paper's section 3.3), with or without
 prediction of tracked obstacles and escape from local minima. Each step
@@ -15,16 +15,16 @@ prediction of tracked obstacles and escape from local minima. Each step
    visible with ``sight_clearance`` to spare;
 3. the *direction*: the total force at the robot, attracted to a carrot at
    most ``lookahead`` ahead, or the boundary tangent while escaping (see
-   :mod:`fusion_planner.core.escape`);
+   :mod:`fusion_planner.core.local_planning.escape`);
 4. the *command*: heading control under the speed caps (adaptive step of
    eq. (18), approach, braking), then, with prediction, the evasion check of
-   :mod:`fusion_planner.core.evasion`, then the velocity and acceleration
+   :mod:`fusion_planner.core.local_planning.evasion`, then the velocity and acceleration
    limits.
 
 Examples
 --------
 >>> import numpy as np
->>> from fusion_planner.core.controller_base import FollowerParams, Observation
+>>> from fusion_planner.core.local_planning.controller_base import FollowerParams, Observation
 >>> ctrl = FieldFollower(FollowerParams(), field='improved', use_key_nodes=False)
 >>> ctrl.set_path(np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([[3.0, 0.0]]))
 >>> obs = Observation(pose=np.zeros(3), velocity=np.zeros(2), obstacle_points=np.zeros((0, 2)),
@@ -40,14 +40,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion_planner.core import apf, escape, evasion
-from fusion_planner.core.controller_base import (
+from fusion_planner.core.local_planning import apf, escape, evasion
+from fusion_planner.core.local_planning.controller_base import (
     LOCAL_PLAN_POINTS, Command, ControllerBase, WindowHistory, as_path)
 from fusion_planner.core.errors import InvalidInput, PlanningError
-from fusion_planner.core.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
-from fusion_planner.core.local_geometry import (
+from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
+from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, points_off_circles, segments_clear, thin_points)
-from fusion_planner.core.replanning import ObstacleMemory
+from fusion_planner.core.local_planning.replanning import ObstacleMemory
 
 LOGGER = logging.getLogger(__name__)
 
@@ -117,14 +117,14 @@ class FieldFollower(ControllerBase):
     predict : bool
         Avoid tracked obstacles at their predicted positions over
         ``prediction_horizon`` and check every command against their
-        predicted motion (:mod:`fusion_planner.core.evasion`); otherwise the
+        predicted motion (:mod:`fusion_planner.core.local_planning.evasion`); otherwise the
         field sees them only where they are now.
     replan : callable, optional
         ``replan(start, goal, obstacle_points) -> (path, key_nodes)``: a new
         global plan from ``start`` (2,) to ``goal`` (2,) [m] that also avoids
         the remembered static obstacle points ``(M, 2)`` [m]; raises
         :class:`~fusion_planner.core.errors.PlanningError` when there is
-        none. :class:`~fusion_planner.core.replanning.GridReplanner` is one.
+        none. :class:`~fusion_planner.core.local_planning.replanning.GridReplanner` is one.
         Used only with key nodes.
 
     Attributes
@@ -569,7 +569,7 @@ class FieldFollower(ControllerBase):
     def _evade(self, obs, scene, command, desired):
         """``command`` within the limits, or an evasive one if it runs into a tracked obstacle.
 
-        Only with prediction (see :mod:`fusion_planner.core.evasion`);
+        Only with prediction (see :mod:`fusion_planner.core.local_planning.evasion`);
         ``desired`` (2,) is the direction the controller wants to go.
         """
         if not self.predict or len(scene.tracked) == 0:

@@ -1,7 +1,7 @@
 """Closed-loop runs: plan once, then sense, decide and move until done.
 
 :func:`run_episode` runs one controller on one
-:class:`~fusion_planner.core.scenario.Scenario`: the global planner plans on
+:class:`~fusion_planner.core.simulation.scenario.Scenario`: the global planner plans on
 the **known** map only (inflated by ``scenario.planner.robot_radius``), the
 controller gets the plan with its ends set to the exact start and goal (or
 just ``[start, goal]`` for the pure field controllers), and the loop runs at
@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fusion_planner.core import follow
+from fusion_planner.core.local_planning import follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
-from fusion_planner.core.planner import GlobalPlanner
-from fusion_planner.core.scenario import RandomScenarioConfig, random_scenario
-from fusion_planner.core.world import World
+from fusion_planner.core.global_planning.planner import GlobalPlanner
+from fusion_planner.core.simulation.scenario import RandomScenarioConfig, random_scenario
+from fusion_planner.core.simulation.world import World
 
 LOGGER = logging.getLogger(__name__)
 
@@ -226,7 +226,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
 
     Examples
     --------
-    >>> from fusion_planner.core.scenario import random_scenario
+    >>> from fusion_planner.core.simulation.scenario import random_scenario
     >>> result = run_episode(random_scenario(5), 'fusion', record=False)
     >>> result.collisions >= 0 and result.time_s > 0
     True

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion_planner.core import neighbourhood as nbh
+from fusion_planner.core.global_planning import neighbourhood as nbh
 from fusion_planner.core.errors import (
     InvalidInput, NoValidPathCouldBeFound, PlannerCancelled, PlannerTimedOut)
 
@@ -131,7 +131,7 @@ def astar(neighbourhood=8, heuristic=None):
 def improved_astar(alpha=1.0, beta=1.0, gamma=0.2, neighbourhood=8, heuristic='euclidean'):
     """Policy of the paper's improved A* (sections 1.3.1 and 1.3.2).
 
-    The defaults are the tuned ones of :class:`~fusion_planner.core.planner.PlannerConfig`:
+    The defaults are the tuned ones of :class:`~fusion_planner.core.global_planning.planner.PlannerConfig`:
     the Euclidean heuristic the paper uses (section 1.2) and ``gamma = 0.2``.
     """
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic, alpha=alpha,

@@ -85,8 +85,8 @@ import yaml
 from fusion_planner.core import map_files
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
-from fusion_planner.core.world import (
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.simulation.world import (
     BounceMotion, Circle, MovingObstacle, RandomWalkMotion, Rectangle, RobotSpec, ScanConfig,
     StaticScene, WaypointMotion, rasterise_obstacles)
 
@@ -190,7 +190,7 @@ class Scenario:
         return rasterise_obstacles(self.grid, circles, rects)
 
     def follower_params(self):
-        """The :class:`~fusion_planner.core.follow.FollowerParams` of this scenario.
+        """The :class:`~fusion_planner.core.local_planning.follow.FollowerParams` of this scenario.
 
         The robot's limits and radius and the control period come from
         ``robot`` and ``limits``; ``follower`` overrides any other field (an
@@ -201,7 +201,7 @@ class Scenario:
         InvalidInput
             An override has a bad value.
         """
-        from fusion_planner.core import apf, follow  # the controllers' modules; imported on use
+        from fusion_planner.core.local_planning import apf, follow  # the controllers' modules; imported on use
         overrides = dict(self.follower)
         apf_overrides = overrides.pop('apf', None)
         robot = self.robot
@@ -424,7 +424,7 @@ def check_scenario(scenario, reader=None):
 
 def _follower_fields():
     """Names of the FollowerParams fields (the ``follower`` overrides)."""
-    from fusion_planner.core import follow  # the controllers' module; imported on use
+    from fusion_planner.core.local_planning import follow  # the controllers' module; imported on use
     return tuple(f.name for f in dataclasses.fields(follow.FollowerParams))
 
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fusion_planner.core import metrics, refine, search
+from fusion_planner.core.global_planning import metrics, refine, search
 from fusion_planner.core.errors import (
     GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
 from fusion_planner.core.grid import GridMap
@@ -46,7 +46,7 @@ class PlannerConfig:
         (ignored by Dijkstra).
     alpha, beta, gamma : float
         Improved A* weights of eqs. (5)-(8): g weight, h weight, gain of the
-        heuristic weight w_n (:func:`~fusion_planner.core.search.heuristic_weight`;
+        heuristic weight w_n (:func:`~fusion_planner.core.global_planning.search.heuristic_weight`;
         0.2 was tuned on the MovingAI maps and a 1024 x 1024 random map,
         docs/BENCHMARKS.md).
     refine : bool
@@ -86,7 +86,7 @@ class PlannerConfig:
         self.policy()  # validates neighbourhood, heuristic and weights
 
     def policy(self):
-        """The :class:`~fusion_planner.core.search.SearchPolicy` of this config."""
+        """The :class:`~fusion_planner.core.global_planning.search.SearchPolicy` of this config."""
         if self.algorithm == 'dijkstra':
             return search.dijkstra(self.neighbourhood)
         if self.algorithm == 'astar':

@@ -22,9 +22,9 @@ from typing import Protocol
 
 import numpy as np
 
-from fusion_planner.core.apf import ApfParams
+from fusion_planner.core.local_planning.apf import ApfParams
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.local_geometry import wrap_angle
+from fusion_planner.core.local_planning.local_geometry import wrap_angle
 
 LOGGER = logging.getLogger(__name__)
 
@@ -380,7 +380,7 @@ class ControllerBase:
 
         Acceleration limits from the measured velocity, then
         ``v_min <= v <= max_speed`` and ``|omega| <= max_omega``; a reverse
-        motion (an evasion, see :mod:`fusion_planner.core.evasion`) below
+        motion (an evasion, see :mod:`fusion_planner.core.local_planning.evasion`) below
         ``v_min`` is braked at ``max_accel``, and never commanded faster than
         ``max_speed`` whatever the measured velocity says.
         """

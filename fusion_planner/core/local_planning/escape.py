@@ -4,7 +4,7 @@ A field controller is *stuck* when its distance to the current sub-goal shows
 a net progress below ``stuck_progress`` over ``stuck_window`` (standing still
 and oscillating alike). Each detection counts one stuck event and opens (or
 continues) an escape :class:`Episode`, whose steps
-:class:`~fusion_planner.core.field_follower.FieldFollower` takes in order:
+:class:`~fusion_planner.core.local_planning.field_follower.FieldFollower` takes in order:
 
 1. fusion only, once per episode: the next A* key node becomes the sub-goal
    (the paper's escape);
@@ -21,7 +21,7 @@ the boundary; one still open after ``escape_time_limit`` is a failure.
 Examples
 --------
 >>> import numpy as np
->>> from fusion_planner.core.controller_base import FollowerParams
+>>> from fusion_planner.core.local_planning.controller_base import FollowerParams
 >>> wall = np.column_stack([np.linspace(-1.0, 1.0, 21), np.full(21, 0.5)])   # y = 0.5
 >>> follow = BoundaryFollow()
 >>> d = follow.direction(np.zeros(2), np.array([2.0, 2.0]), wall, np.ones(21), FollowerParams())
@@ -34,8 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion_planner.core import apf
-from fusion_planner.core.local_geometry import segments_clear
+from fusion_planner.core.local_planning import apf
+from fusion_planner.core.local_planning.local_geometry import segments_clear
 
 #: Global replans per escape episode before falling back to boundary following.
 MAX_REPLANS_PER_EPISODE = 2
@@ -111,7 +111,7 @@ class BoundaryFollow:
         points : ndarray, shape (M, 2)
             Obstacle points of the field [m].
         weights : ndarray, shape (M,)
-            Their weights (see :mod:`fusion_planner.core.apf`).
+            Their weights (see :mod:`fusion_planner.core.local_planning.apf`).
         params : FollowerParams
 
         Returns

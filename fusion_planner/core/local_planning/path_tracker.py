@@ -7,7 +7,7 @@ within ``stuck_window``) means failed.
 Examples
 --------
 >>> import numpy as np
->>> from fusion_planner.core.controller_base import FollowerParams, Observation
+>>> from fusion_planner.core.local_planning.controller_base import FollowerParams, Observation
 >>> tracker = PathTracker(FollowerParams())
 >>> tracker.set_path(np.array([[0.0, 0.0], [3.0, 0.0]]), np.array([[0.0, 0.0], [3.0, 0.0]]))
 >>> obs = Observation(pose=np.zeros(3), velocity=np.zeros(2), obstacle_points=np.zeros((0, 2)),
@@ -20,9 +20,9 @@ import math
 
 import numpy as np
 
-from fusion_planner.core.controller_base import (
+from fusion_planner.core.local_planning.controller_base import (
     LOCAL_PLAN_POINTS, Command, ControllerBase, WindowHistory)
-from fusion_planner.core.local_geometry import resample
+from fusion_planner.core.local_planning.local_geometry import resample
 
 #: Path points ahead of the current one the tracker searches for the closest.
 TRACK_SEARCH_WINDOW = 200

@@ -4,7 +4,7 @@
 (scan points not on a tracked obstacle, thinned), added at most once per
 :data:`MEMORY_PERIOD`; :class:`GridReplanner` plans around the known map
 with them burnt in. Together they are the ``replan`` step of the escape (see
-:mod:`fusion_planner.core.escape`).
+:mod:`fusion_planner.core.local_planning.escape`).
 
 Examples
 --------
@@ -21,8 +21,8 @@ import numpy as np
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.local_geometry import thin_points
-from fusion_planner.core.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.local_planning.local_geometry import thin_points
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 
 #: Period [s] at which static obstacle points are added to the memory.
 MEMORY_PERIOD = 1.0
@@ -72,9 +72,9 @@ class GridReplanner:
     """Global replanning on the known map with remembered obstacle points added.
 
     A ``replan`` callable for
-    :class:`~fusion_planner.core.field_follower.FieldFollower`: the points (obstacles
+    :class:`~fusion_planner.core.local_planning.field_follower.FieldFollower`: the points (obstacles
     the robot has seen) are burnt into a copy of the map as occupied cells,
-    then :class:`~fusion_planner.core.planner.GlobalPlanner` plans as usual
+    then :class:`~fusion_planner.core.global_planning.planner.GlobalPlanner` plans as usual
     (inflation, improved A*, refinement).
 
     Parameters

@@ -1,0 +1,1 @@
+"""Closed-loop simulation: the world, scenarios, and episodes and batches of runs."""
