@@ -1,5 +1,7 @@
 """run_node: a clean stop when a take fails during shutdown, a fault otherwise."""
 
+import signal
+
 import pytest
 
 rclpy = pytest.importorskip('rclpy')
@@ -14,10 +16,15 @@ class QuietNode(Node):
         super().__init__('run_node_test')
 
 
-def spin_that_fails(shut_down_first):
+def spin_that_fails(shut_down_first=False, ctrl_c_first=False):
     def spin(node):
         if shut_down_first:
             rclpy.shutdown()  # what Ctrl-C does, under a running take
+        if ctrl_c_first:  # Ctrl-C inside pybind11's argument conversion, context still up
+            try:
+                signal.getsignal(signal.SIGINT)(signal.SIGINT, None)
+            except KeyboardInterrupt:
+                pass
         raise RuntimeError('Unable to convert call argument')
     return spin
 
@@ -25,6 +32,13 @@ def spin_that_fails(shut_down_first):
 def test_an_error_of_a_take_during_shutdown_is_a_clean_stop(monkeypatch):
     monkeypatch.setattr(node_main.rclpy, 'spin', spin_that_fails(shut_down_first=True))
     assert node_main.run_node(QuietNode, 'run_node_test', []) == 0
+
+
+def test_an_error_of_a_take_right_after_ctrl_c_is_a_clean_stop(monkeypatch):
+    monkeypatch.setattr(node_main.rclpy, 'spin', spin_that_fails(ctrl_c_first=True))
+    before = signal.getsignal(signal.SIGINT)
+    assert node_main.run_node(QuietNode, 'run_node_test', []) == 0
+    assert signal.getsignal(signal.SIGINT) is before  # the watch put it back
 
 
 def test_the_same_error_while_running_is_not_hidden(monkeypatch):

@@ -1,5 +1,7 @@
 """The ``main()`` shared by the three node executables (ros2/examples shape)."""
 
+import signal
+
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
@@ -24,7 +26,8 @@ def run_node(node_class, node_name, args=None):
         0 on a clean stop, 1 when the node refused its start-up parameters
         (one fatal log line, no traceback).
     """
-    rclpy.init(args=args)
+    ctrl_c = _CtrlCWatch()
+    rclpy.init(args=args)  # rclpy's signal handler chains to the watch's
     node = None
     try:
         node = node_class()
@@ -35,13 +38,35 @@ def run_node(node_class, node_name, args=None):
         rclpy.logging.get_logger(node_name).fatal(f'cannot start: {err}')
         return 1
     except RuntimeError:
-        # Ctrl-C shuts the context down under a running take (rclpy 7.1 then
-        # raises "Unable to convert call argument"); after a shutdown that is
-        # the stop we asked for, not a fault.
-        if rclpy.ok():
+        # Ctrl-C during a take raises its KeyboardInterrupt inside pybind11's
+        # argument conversion, which rclpy 7.1 reports as "Unable to convert
+        # call argument", sometimes before the context is shut down. After a
+        # Ctrl-C or a shutdown that is the stop we asked for, not a fault.
+        if rclpy.ok() and not ctrl_c.seen:
             raise
     finally:
+        ctrl_c.restore()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+class _CtrlCWatch:
+    """Remembers that SIGINT arrived, then raises KeyboardInterrupt as Python does.
+
+    Installed before ``rclpy.init`` so that rclpy's own handler (which wakes
+    the executor) chains to it instead of being replaced by it.
+    """
+
+    def __init__(self):
+        self.seen = False
+        self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+
+    def _on_sigint(self, signum, frame):
+        self.seen = True
+        signal.default_int_handler(signum, frame)
+
+    def restore(self):
+        """Put back the handler that was there before."""
+        signal.signal(signal.SIGINT, self._previous)
