@@ -40,6 +40,7 @@ Contract:
   controller, bad option). Errors are one line on stderr, never a traceback.
 """
 
+import contextlib
 import json
 import logging
 import sys
@@ -81,14 +82,23 @@ def add_parser(subparsers):
 
 def run(args):
     """Run ``sim``; returns the exit status."""
+    with quiet_core(args):
+        return _run(args)
+
+
+@contextlib.contextmanager
+def quiet_core(args):
+    """Silence the core's warnings unless ``--verbose``.
+
+    Failures are reported in the results; the core's warnings (the
+    controllers' failures) would repeat them.
+    """
     core_logger = logging.getLogger('fusion_planner.core')
     level = core_logger.level
     if not getattr(args, 'verbose', False):
-        # failures are reported in the results; the core's warnings (the controllers'
-        # failures) would repeat them
         core_logger.setLevel(logging.ERROR)
     try:
-        return _run(args)
+        yield
     finally:
         core_logger.setLevel(level)
 
@@ -211,7 +221,7 @@ def batch_table(batch, wall_time=False):
                  if s.unsolvable_episodes else '-',
                  _num(s.max_no_path_delay_s, digits=1)]
         if wall_time:
-            cells.append(f'{s.wall_time_s:.0f}')
+            cells.append(f'{s.wall_time_s:.1f}')
         lines.append('| ' + ' | '.join(cells) + ' |')
     return '\n'.join(lines)
 
