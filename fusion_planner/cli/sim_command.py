@@ -37,7 +37,9 @@ import json
 import logging
 import sys
 
+from fusion_planner.cli.output_paths import prepare_file
 from fusion_planner.cli.progress import Progress
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import PlanningError
 from fusion_planner.core.simulation.episodes import CONTROLLERS
 
@@ -95,6 +97,7 @@ def _run(args):
             return _run_batch(args, controllers)
         if len(controllers) != 1:
             raise _BadInput('a scenario runs one controller; give --controller once')
+        _check_outputs(args)
         return _run_scenario(args, controllers[0])
     except (_BadInput, PlanningError) as err:
         print(f'error: {_one_line(err)}', file=sys.stderr)
@@ -111,6 +114,14 @@ def _controllers(args):
         if name not in CONTROLLERS:
             raise _BadInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
     return list(dict.fromkeys(names))
+
+
+def _check_outputs(args):
+    """``--plot`` and ``--gif``: the ``plot`` extra and writable paths, before the run."""
+    for option, path in (('--plot', args.plot), ('--gif', args.gif)):
+        if path:
+            require('plot', f'sim {option}')
+            prepare_file(path, option)
 
 
 def _run_scenario(args, controller):
