@@ -267,6 +267,7 @@ class RunRecorder:
     def __init__(self, scenario, goal_tolerance, time_limit_s=math.inf):
         self.scenario = scenario
         self.time_limit_s = float(time_limit_s)
+        self.ended = False  # the clock passed the limit, or end() was called
         self.goal = np.asarray(scenario.goal, dtype=float)
         # The plan ends at the centre of the goal's cell, up to half a cell
         # diagonal from the goal; one diagonal of slack covers that.
@@ -295,14 +296,17 @@ class RunRecorder:
         """End the run now: what comes later is not recorded (the limit becomes now)."""
         with self._lock:
             self.time_limit_s = min(self.time_limit_s, self.sim_time)
+            self.ended = True
 
     def past_limit(self, t):
         """Whether simulated time ``t`` [s] lies after the time limit."""
         return t > self.time_limit_s + TIME_EPS_S
 
     def on_clock(self, msg):
-        t = min(_seconds(msg.clock), self.time_limit_s)
+        t = _seconds(msg.clock)
         with self._lock:
+            self.ended = self.ended or self.past_limit(t)
+            t = min(t, self.time_limit_s)
             if t != self.sim_time:
                 self.clock_wall = time.monotonic()
                 if self.started_wall is None:
@@ -342,8 +346,8 @@ class RunRecorder:
     def on_diagnostics(self, msg):
         stamp = _seconds(msg.header.stamp)  # sender's clock
         with self._lock:
-            if self.sim_time >= self.time_limit_s:
-                return  # the run is over: nothing after the limit counts
+            if self.ended:
+                return  # nothing after the limit counts
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
             with self._lock:

@@ -39,11 +39,14 @@ def prepare_file(path, option):
         folder cannot be created or written to.
     """
     path = pathlib.Path(path)
-    if path.is_dir():
-        raise OutputPathError(f'cannot write {option} {path}: it is a folder')
-    _make_folder(path.parent, option, path)
-    if path.exists() and not os.access(path, os.W_OK):
-        raise OutputPathError(f'cannot write {option} {path}: permission denied')
+    try:
+        if path.is_dir():
+            raise OutputPathError(f'cannot write {option} {path}: it is a folder')
+        _make_folder(path.parent, option, path)
+        if path.exists() and not os.access(path, os.W_OK):
+            raise OutputPathError(f'cannot write {option} {path}: permission denied')
+    except OSError as err:  # a name the file system refuses (too long, ...)
+        raise OutputPathError(f'cannot write {option} {path}: {err.strerror or err}') from None
     return path
 
 
@@ -68,20 +71,21 @@ def prepare_folder(path, option):
         written to.
     """
     path = pathlib.Path(path)
-    _make_folder(path, option, path)
+    try:
+        _make_folder(path, option, path)
+    except OSError as err:
+        raise OutputPathError(f'cannot write {option} {path}: {err.strerror or err}') from None
     return path
 
 
 def _make_folder(folder, option, target):
-    """Create ``folder`` with its parents and check it is writable; ``target`` names the output."""
+    """Create ``folder`` with its parents and check it is writable; ``target`` names the output.
+
+    Raises :class:`OutputPathError`, or ``OSError`` from the file system.
+    """
     for part in (folder, *folder.parents):
         if part.exists() and not part.is_dir():
             raise OutputPathError(f'cannot write {option} {target}: {part} is not a folder')
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise OutputPathError(
-            f'cannot write {option} {target}: cannot create {folder} '
-            f'({err.strerror or err})') from None
+    folder.mkdir(parents=True, exist_ok=True)
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputPathError(f'cannot write {option} {target}: {folder} is not writable')

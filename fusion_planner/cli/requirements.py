@@ -63,7 +63,7 @@ def missing(extra, purpose, modules=None, alternative=None):
     >>> missing('plot', 'plan --plot', modules=('math',)) is None
     True
     """
-    for name in modules or EXTRA_MODULES[extra]:
+    for name in EXTRA_MODULES[extra] if modules is None else modules:
         try:
             importlib.import_module(name)
         except ImportError as err:
