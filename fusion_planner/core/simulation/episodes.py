@@ -108,7 +108,7 @@ class EpisodeResult:
     escape_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
 
     def summary(self):
-        """The JSON-ready figures (issue 3, item 6) plus identification.
+        """The JSON-ready figures of the run plus identification.
 
         Returns
         -------
