@@ -147,3 +147,12 @@ def test_missing_map_beside_a_scenario_file(tmp_path, capsys):
     (tmp_path / 'tiny.map').unlink()
     status, _, err = _run(capsys, '--maps', str(tmp_path), '--no-progress')
     assert status == 2 and 'tiny.map' in err
+
+
+def test_bench_refine_without_the_maps_says_where_to_get_them(monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv(movingai.DATA_ENV, str(tmp_path / 'absent'))
+    status = main(['bench', 'refine', '--repeats', '1'])
+    out, err = capsys.readouterr()
+    assert status == 2 and out == ''  # refused before refining anything
+    assert len(err.strip().splitlines()) == 1
+    assert movingai.DATA_URL in err and '--quick' in err

@@ -164,6 +164,22 @@ def default_data_dir():
     return repository.parent / 'shared' / 'benchmarks' / 'movingai'
 
 
+def missing_data(where, alternative=None):
+    """The :class:`MapError` of MovingAI data that is not there, saying where to get it.
+
+    Parameters
+    ----------
+    where : str or os.PathLike
+        The missing folder or file.
+    alternative : str, optional
+        Another way out, e.g. ``'give --quick'``.
+    """
+    other = f', or {alternative}' if alternative else ''
+    return MapError(f'MovingAI benchmark data {where} not found: put the maps and their '
+                    f'scenarios (NAME.map, NAME.map.scen from {DATA_URL}) in a folder and give '
+                    f'--maps DIR (or set {DATA_ENV}){other}')
+
+
 def sample_rows(rows, count=None):
     """Pick ``count`` rows spread evenly over the difficulty buckets.
 
@@ -223,10 +239,7 @@ def find_scenario_sets(folder, rows_per_map=None, only=None):
     """
     folder = pathlib.Path(folder)
     if not folder.is_dir():
-        raise MapError(
-            f'MovingAI benchmark folder {folder} not found: put the maps and their scenarios '
-            f'(NAME.map, NAME.map.scen from {DATA_URL}) in a folder and give --maps DIR '
-            f'(or set {DATA_ENV})')
+        raise missing_data(folder)
     scen_paths = sorted(folder.glob('*.map.scen'))
     if not scen_paths:
         raise MapError(f'no MovingAI scenario file (*.map.scen) in {folder}')
