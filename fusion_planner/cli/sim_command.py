@@ -25,12 +25,14 @@ Contract:
   ``path_length_over_optimal``, ``mean_min_clearance_m``,
   ``stuck_events``, ``failures``) and ``episodes`` (one row per run).
 - ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6;
-  ``--gif GIF`` (scenario only) writes it as an animation.
+  ``--gif GIF`` (scenario only) writes it as an animation. Both need the
+  ``plot`` extra; it and the paths are checked before the run
+  (:mod:`fusion_planner.cli.requirements`, :mod:`fusion_planner.cli.output_paths`).
 - A batch reports its progress with an estimated time to completion on
   stderr.
 - Exit status: 0 the goal was reached (a batch: the batch completed), 1 the
   goal was not reached, 2 bad input (unreadable or invalid scenario, unknown
-  controller, bad option). Errors are one line on stderr, never a traceback.
+  controller, bad option, missing extra, unwritable output). Errors are one line on stderr, never a traceback.
 """
 
 import json
