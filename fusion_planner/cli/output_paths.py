@@ -53,16 +53,8 @@ def prepare_file(path, option):
 def prepare_folder(path, option):
     """Make sure ``path`` is a writable folder, creating it (and its parents) if missing.
 
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The folder a command will write files into.
-    option : str
-        The option that named it, for the message.
-
-    Returns
-    -------
-    pathlib.Path
+    Parameters and result as for :func:`prepare_file`, ``path`` being the
+    folder a command writes its files into.
 
     Raises
     ------

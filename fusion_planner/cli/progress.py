@@ -143,7 +143,7 @@ class Progress:
         Name of the unit, e.g. ``'rows'``; when given, the line shows
         ``done/total unit``, else only the percentage (fractional work).
     stream : file, optional
-        Where to write; default ``sys.stderr`` as it is at construction.
+        As for :class:`StatusLine`, which writes the lines.
 
     Examples
     --------
