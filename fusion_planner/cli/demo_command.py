@@ -417,7 +417,9 @@ class RunRecorder:
             scenario=self.scenario.name, controller=str(local.get('controller', 'fusion')),
             seed=self.scenario.seed, reached=reached,
             collisions=int(sim.get('collisions', 0)), time_s=time_s,
-            path_length_m=float(sim.get('distance_travelled_m', odom_length)),
+            # the simulator's count lags by up to a status period; odometry may miss
+            # messages: the larger is the more recent
+            path_length_m=max(float(sim.get('distance_travelled_m', 0.0)), odom_length),
             min_clearance_m=float(sim.get('min_clearance_m', 'nan')),
             stuck_events=int(local.get('stuck_events', 0)), failure=failure,
             plan_length_m=None if plan is None else
