@@ -108,6 +108,13 @@ def test_demo_checks_the_extras_of_its_outputs_before_it_starts(tmp_path, blocke
     assert '--no-' in done.stderr  # and how to do without
 
 
+@pytest.mark.parametrize('blocked, extra', [(['matplotlib'], 'plot'), (['mcap_ros2'], 'record')])
+def test_bench_local_checks_the_extras_of_its_demo_run(tmp_path, blocked, extra):
+    done = run_core_only(cli('bench', 'local', '--no-ros'), tmp_path, blocked=blocked)
+    assert_refused(done, extra, tmp_path / 'out')
+    assert '--no-demo' in done.stderr
+
+
 def test_soak_without_the_test_extra(tmp_path):
     done = run_core_only(['-m', 'fusion_planner.ros.fuzz'], tmp_path, blocked=['hypothesis'])
     assert_refused(done, 'test', tmp_path / 'out')
