@@ -138,7 +138,7 @@ def test_what_needs_no_extra_runs_core_only(tmp_path, argv):
 
 
 @pytest.mark.parametrize('argv', [[], ['plan'], ['sim'], ['demo'], ['bench'], ['bench', 'peers'],
-                                  ['bench', 'local'], ['bench', 'movingai']])
+                                  ['bench', 'local'], ['bench', 'movingai'], ['bench', 'families']])
 def test_help_works_core_only(tmp_path, argv):
     done = run_core_only(cli(*argv, '--help'), tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
