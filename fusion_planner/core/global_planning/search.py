@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion_planner.core.global_planning import neighbourhood as nbh
+from fusion_planner.core.global_planning import kernel, neighbourhood as nbh
 from fusion_planner.core.errors import (
     InvalidInput, NoValidPathCouldBeFound, PlannerCancelled, PlannerTimedOut)
 
@@ -54,6 +54,14 @@ _PAD = 2
 #: Limits and cancellation are checked at the first expansion and then once
 #: per this many expansions (the expansion budget itself is exact).
 _CHECK_EVERY = 1024
+#: The compiled loop returns to Python to poll them every this many
+#: expansions (a few milliseconds).
+_COMPILED_SLICE = 1 << 15
+#: Initial capacity of the compiled loop's heap arrays (doubled as needed).
+_INITIAL_HEAP = 1 << 12
+
+#: Implementations of the loop (:func:`grid_search`'s ``engine``).
+ENGINES = ('compiled', 'python')
 
 #: Per-search cell state, one byte per padded cell: 0 never reached;
 #: 1..16 reached, the value being 1 + the index of the move (in
@@ -343,6 +351,49 @@ class PaddedGrid:
             self._tables[neighbourhood] = tables
         return tables
 
+    def allowed_array(self, neighbourhood):
+        """:meth:`allowed_moves` as a numpy array (uint8, or uint16 for 16), no copy."""
+        allowed = self.allowed_moves(neighbourhood)
+        return np.frombuffer(allowed, dtype=np.uint8 if isinstance(allowed, bytes) else np.uint16)
+
+    def kernel_moves(self, neighbourhood):
+        """The move table of the compiled loop (see :func:`kernel.run`), cached.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``(offsets, costs, d_rows, d_cols, forward_bits, rest_bits)``:
+            per move its flat offset (int64), cost [cells] (float64), row
+            and column step (int64); per goal sector the bitmask of its
+            forward moves and of the others (int64).
+        """
+        key = ('kernel', neighbourhood)
+        arrays = self._tables.get(key)
+        if arrays is None:
+            table = nbh.moves(neighbourhood)
+            forward_idx, rest_idx = nbh.sector_split(table)
+            arrays = (np.array([dr * self.width + dc for dr, dc, _, _ in table], np.int64),
+                      np.array([cost for _, _, cost, _ in table], np.float64),
+                      np.array([dr for dr, _, _, _ in table], np.int64),
+                      np.array([dc for _, dc, _, _ in table], np.int64),
+                      np.array([_bits(idx) for idx in forward_idx], np.int64),
+                      np.array([_bits(idx) for idx in rest_idx], np.int64))
+            self._tables[key] = arrays
+        return arrays
+
+    def prepare(self, neighbourhood):
+        """Build everything a search with ``neighbourhood`` needs, now.
+
+        The legal-move bitmasks, the move tables of both loops, and the
+        compiled loop itself (loaded from numba's cache, or compiled the
+        first time on a machine) by a search on a tiny grid.
+        """
+        self.allowed_moves(neighbourhood)
+        self.move_tables(neighbourhood)
+        self.kernel_moves(neighbourhood)
+        if kernel.AVAILABLE:
+            _warm_up(neighbourhood)
+
     def _take_costs(self):
         """A float cost array of padded-grid size (contents undefined).
 
@@ -356,6 +407,18 @@ class PaddedGrid:
 
     def _give_costs(self, costs):
         self._cost_pool.append(costs)
+
+
+def _bits(indices):
+    """Bitmask with the bits of ``indices`` set."""
+    return sum(1 << i for i in indices)
+
+
+def _warm_up(neighbourhood):
+    """Load the compiled loop for a neighbourhood by one search on a 3 x 3 grid."""
+    tiny = PaddedGrid(np.ones((3, 3), bool))
+    for policy in (astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)):
+        grid_search(tiny, (0, 0), (2, 2), policy, engine='compiled')
 
 
 def _shifted(values, offset, reach):
@@ -387,7 +450,7 @@ def _sector(d_row, d_col):
 
 
 def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=None,
-                cancel=None, return_expanded=False):
+                cancel=None, return_expanded=False, engine=None):
     """Best-first search from ``start`` to ``goal`` on a padded grid.
 
     Parameters
@@ -404,10 +467,15 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     time_limit_s : float, optional
         Stop with :class:`PlannerTimedOut` after this much wall time [s].
     cancel : callable, optional
-        Polled at the first expansion and then every 1024 expansions;
-        returning True stops the search with :class:`PlannerCancelled`.
+        Polled at the first expansion and then every 1024 expansions (every
+        :data:`_COMPILED_SLICE` with the compiled loop); returning True stops
+        the search with :class:`PlannerCancelled`.
     return_expanded : bool
         Fill :attr:`SearchResult.expanded_cells`.
+    engine : str, optional
+        ``'compiled'`` (the loop of :mod:`kernel`, needs numba) or
+        ``'python'``; both return the same result. Default: compiled when
+        numba is installed.
 
     Returns
     -------
@@ -449,14 +517,14 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     >>> result.cells.tolist(), round(result.cost, 3)
     ([[0, 0], [0, 1], [0, 2], [1, 2], [2, 2]], 4.0)
     """
+    if engine is None:
+        engine = 'compiled' if kernel.AVAILABLE else 'python'
+    if engine not in ENGINES:
+        raise InvalidInput(f'engine must be one of {ENGINES}, got {engine!r}')
+    if engine == 'compiled' and not kernel.AVAILABLE:
+        raise InvalidInput('the compiled search needs numba, which is not installed')
     width = grid.width
-    neighbourhood = policy.neighbourhood
-    allowed = grid.allowed_moves(neighbourhood)
-    full, forward, rest, offsets = grid.move_tables(neighbourhood)
-    variable = policy.variable_neighbourhood
-    alpha = float(policy.alpha)
     kind = _HEURISTIC_CODES[policy.heuristic]
-
     s = grid.index(start)
     t = grid.index(goal)
     goal_row, goal_col = divmod(t, width)
@@ -466,131 +534,15 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     else:
         start_distance = _heuristic(kind, start_row - goal_row, start_col - goal_col)
         weight = policy.beta * heuristic_weight(start_distance, start_distance, policy.gamma)
-    sqrt = math.sqrt
-    push, pop = heapq.heappush, heapq.heappop
-    deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
-    budget = math.inf if max_expansions is None else max_expansions
-
-    closed_bit = _CLOSED
-    euclidean = kind == _EUCLIDEAN
-    octile = kind == _OCTILE
-    zero = kind == _ZERO
-    root2_minus_2 = _ROOT2_MINUS_2
+    limits = _Limits(max_expansions, time_limit_s, cancel)
     state = bytearray(len(grid.passable))
     g = grid._take_costs()
     try:
         state[s] = _START_CODE
         g[s] = 0.0
         h0 = weight * _heuristic(kind, start_row - goal_row, start_col - goal_col)
-        heap = [(h0, h0, s)]
-        generated = 1
-        expanded = 0
-        next_check = 1  # poll the limits at the first expansion
-        found = False
-        while heap:
-            j = pop(heap)[2]
-            if j >= 0:
-                code = state[j]
-                if code & closed_bit:
-                    continue  # a stale entry of a node already expanded
-                if j == t:
-                    found = True
-                    break
-                state[j] = code | closed_bit
-                expanded += 1
-                if expanded >= next_check:
-                    _check_limits(expanded, budget, deadline, time_limit_s, cancel)
-                    next_check = min(expanded + _CHECK_EVERY, budget)
-                widened = not variable
-            else:
-                # Second pass of a reduced expansion: its remaining moves.
-                j = ~j
-                widened = True
-            row, col = divmod(j, width)
-            d_row = row - goal_row
-            d_col = col - goal_col
-            mask = allowed[j]
-            if variable:
-                # _sector(-d_row, -d_col), inline: the goal direction's sector.
-                a_row = -d_row if d_row < 0 else d_row
-                a_col = -d_col if d_col < 0 else d_col
-                square = (a_row + a_col) * (a_row + a_col)
-                if square < 2 * a_col * a_col:
-                    sector = 4 if d_col > 0 else 0
-                elif square < 2 * a_row * a_row:
-                    sector = 6 if d_row > 0 else 2
-                elif d_row < 0:
-                    sector = 1 if d_col < 0 else 3
-                elif d_row == 0:
-                    sector = 0
-                else:
-                    sector = 7 if d_col < 0 else 5
-                moves = rest[sector][mask] if widened else forward[sector][mask]
-            else:
-                moves = full[mask]
-            gj = g[j]
-            probe = False
-            while True:  # at most three passes: forward, probe, rest
-                opened = False
-                best_f = math.inf
-                best_h = 0.0
-                for offset, cost, dr, dc, move_code in moves:
-                    k = j + offset
-                    state_k = state[k]
-                    if state_k & closed_bit:
-                        continue
-                    ng = gj + cost
-                    if state_k and ng >= g[k]:
-                        continue
-                    # The heuristic term beta * h * w_n, inline (eqs. 2-4, 8).
-                    if euclidean:
-                        y = d_row + dr
-                        x = d_col + dc
-                        hk = weight * sqrt(x * x + y * y)
-                    elif octile:
-                        y = d_row + dr
-                        x = d_col + dc
-                        if y < 0:
-                            y = -y
-                        if x < 0:
-                            x = -x
-                        hk = weight * (x + y + root2_minus_2 * (x if x < y else y))
-                    elif zero:
-                        hk = 0.0
-                    else:
-                        hk = weight * (abs(d_row + dr) + abs(d_col + dc))
-                    f = alpha * ng + hk
-                    if probe:
-                        if f < best_f:
-                            best_f = f
-                            best_h = hk
-                        continue
-                    if not state_k:
-                        generated += 1
-                    g[k] = ng
-                    state[k] = move_code
-                    push(heap, (f, hk, k))
-                    opened = True
-                if probe:
-                    # Re-queue the node at the best f its remaining moves
-                    # would give, so they are tried exactly when A* would
-                    # need them; when that entry would come up next anyway,
-                    # widen now instead.
-                    if best_f == math.inf:
-                        break
-                    entry = (best_f, best_h, ~j)
-                    if heap and heap[0] < entry:
-                        push(heap, entry)
-                        break
-                    moves = rest[sector][mask]
-                    probe = False
-                    continue
-                if widened:
-                    break
-                widened = True
-                moves = rest[sector][mask]
-                # No progress ahead: widen at once; else only measure the rest.
-                probe = opened
+        loop = _compiled_loop if engine == 'compiled' else _python_loop
+        found, expanded, generated = loop(grid, policy, s, t, kind, weight, h0, state, g, limits)
         if not found:
             raise NoValidPathCouldBeFound(
                 f'no path from cell {tuple(start)} to cell {tuple(goal)} '
@@ -599,6 +551,7 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     finally:
         grid._give_costs(g)
 
+    offsets = grid.move_tables(policy.neighbourhood)[3]
     chain = [t]
     j = t
     for _ in range(len(state)):  # bounded: a path visits each cell once
@@ -616,6 +569,162 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
                         generated=generated, expanded_cells=expanded_cells)
 
 
+def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
+    """The search loop in pure Python; see :func:`grid_search`.
+
+    Returns ``(found, expanded, generated)``; fills ``state`` and ``g``.
+    """
+    width = grid.width
+    goal_row, goal_col = divmod(t, width)
+    allowed = grid.allowed_moves(policy.neighbourhood)
+    full, forward, rest, _ = grid.move_tables(policy.neighbourhood)
+    variable = policy.variable_neighbourhood
+    alpha = float(policy.alpha)
+    sqrt = math.sqrt
+    push, pop = heapq.heappush, heapq.heappop
+    closed_bit = _CLOSED
+    euclidean = kind == _EUCLIDEAN
+    octile = kind == _OCTILE
+    zero = kind == _ZERO
+    root2_minus_2 = _ROOT2_MINUS_2
+    heap = [(h0, h0, s)]
+    generated = 1
+    expanded = 0
+    next_check = 1  # poll the limits at the first expansion
+    found = False
+    while heap:
+        j = pop(heap)[2]
+        if j >= 0:
+            code = state[j]
+            if code & closed_bit:
+                continue  # a stale entry of a node already expanded
+            if j == t:
+                found = True
+                break
+            state[j] = code | closed_bit
+            expanded += 1
+            if expanded >= next_check:
+                limits.check(expanded)
+                next_check = min(expanded + _CHECK_EVERY, limits.budget)
+            widened = not variable
+        else:
+            # Second pass of a reduced expansion: its remaining moves.
+            j = ~j
+            widened = True
+        row, col = divmod(j, width)
+        d_row = row - goal_row
+        d_col = col - goal_col
+        mask = allowed[j]
+        if variable:
+            # _sector(-d_row, -d_col), inline: the goal direction's sector.
+            a_row = -d_row if d_row < 0 else d_row
+            a_col = -d_col if d_col < 0 else d_col
+            square = (a_row + a_col) * (a_row + a_col)
+            if square < 2 * a_col * a_col:
+                sector = 4 if d_col > 0 else 0
+            elif square < 2 * a_row * a_row:
+                sector = 6 if d_row > 0 else 2
+            elif d_row < 0:
+                sector = 1 if d_col < 0 else 3
+            elif d_row == 0:
+                sector = 0
+            else:
+                sector = 7 if d_col < 0 else 5
+            moves = rest[sector][mask] if widened else forward[sector][mask]
+        else:
+            moves = full[mask]
+        gj = g[j]
+        probe = False
+        while True:  # at most three passes: forward, probe, rest
+            opened = False
+            best_f = math.inf
+            best_h = 0.0
+            for offset, cost, dr, dc, move_code in moves:
+                k = j + offset
+                state_k = state[k]
+                if state_k & closed_bit:
+                    continue
+                ng = gj + cost
+                if state_k and ng >= g[k]:
+                    continue
+                # The heuristic term beta * h * w_n, inline (eqs. 2-4, 8).
+                if euclidean:
+                    y = d_row + dr
+                    x = d_col + dc
+                    hk = weight * sqrt(x * x + y * y)
+                elif octile:
+                    y = d_row + dr
+                    x = d_col + dc
+                    if y < 0:
+                        y = -y
+                    if x < 0:
+                        x = -x
+                    hk = weight * (x + y + root2_minus_2 * (x if x < y else y))
+                elif zero:
+                    hk = 0.0
+                else:
+                    hk = weight * (abs(d_row + dr) + abs(d_col + dc))
+                f = alpha * ng + hk
+                if probe:
+                    if f < best_f:
+                        best_f = f
+                        best_h = hk
+                    continue
+                if not state_k:
+                    generated += 1
+                g[k] = ng
+                state[k] = move_code
+                push(heap, (f, hk, k))
+                opened = True
+            if probe:
+                # Re-queue the node at the best f its remaining moves
+                # would give, so they are tried exactly when A* would
+                # need them; when that entry would come up next anyway,
+                # widen now instead.
+                if best_f == math.inf:
+                    break
+                entry = (best_f, best_h, ~j)
+                if heap and heap[0] < entry:
+                    push(heap, entry)
+                    break
+                moves = rest[sector][mask]
+                probe = False
+                continue
+            if widened:
+                break
+            widened = True
+            moves = rest[sector][mask]
+            # No progress ahead: widen at once; else only measure the rest.
+            probe = opened
+    return found, expanded, generated
+
+
+def _compiled_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
+    """The search loop of :mod:`kernel`, run in slices; see :func:`grid_search`.
+
+    Returns ``(found, expanded, generated)``; fills ``state`` and ``g``.
+    """
+    allowed = grid.allowed_array(policy.neighbourhood)
+    moves = grid.kernel_moves(policy.neighbourhood)
+    state_array = np.frombuffer(state, dtype=np.uint8)
+    g_array = np.frombuffer(g, dtype=np.float64)
+    heap = np.empty((_INITIAL_HEAP, 3))
+    heap[0] = (h0, h0, s)
+    counts = np.array([1, 0, 1], dtype=np.int64)  # heap size, expanded, generated
+    limits.check(0)
+    while True:
+        pause_at = min(counts[1] + _COMPILED_SLICE, limits.budget)
+        status = kernel.run(allowed, moves, grid.width, t, kind, float(policy.alpha), weight,
+                            policy.variable_neighbourhood, state_array, g_array, heap, counts,
+                            pause_at)
+        if status == kernel.HEAP_FULL:
+            heap = np.concatenate([heap, np.empty_like(heap)])
+        elif status == kernel.PAUSED:
+            limits.check(int(counts[1]))
+        else:
+            return status == kernel.FOUND, int(counts[1]), int(counts[2])
+
+
 def _heuristic(kind, d_row, d_col):
     """Unweighted heuristic [cells] of an offset to the goal (eqs. 2-4)."""
     y, x = abs(d_row), abs(d_col)
@@ -628,13 +737,30 @@ def _heuristic(kind, d_row, d_col):
     return 0.0
 
 
-def _check_limits(expanded, budget, deadline, time_limit_s, cancel):
-    """Raise when the expansion budget, the deadline or the caller says stop."""
-    if expanded >= budget:
-        raise PlannerTimedOut(
-            f'search stopped after {expanded} expansions without reaching the goal')
-    if deadline is not None and time.monotonic() > deadline:
-        raise PlannerTimedOut(
-            f'search stopped after {time_limit_s:g} s without reaching the goal')
-    if cancel is not None and cancel():
-        raise PlannerCancelled('search cancelled by the caller')
+class _Limits:
+    """The stop conditions of one search: expansion budget, deadline, caller.
+
+    Parameters
+    ----------
+    max_expansions : int or None
+    time_limit_s : float or None
+        Wall time [s] from now.
+    cancel : callable or None
+    """
+
+    def __init__(self, max_expansions, time_limit_s, cancel):
+        self.budget = math.inf if max_expansions is None else max_expansions
+        self.time_limit_s = time_limit_s
+        self.deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
+        self.cancel = cancel
+
+    def check(self, expanded):
+        """Raise when the budget, the deadline or the caller says stop."""
+        if expanded >= self.budget:
+            raise PlannerTimedOut(
+                f'search stopped after {expanded} expansions without reaching the goal')
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise PlannerTimedOut(
+                f'search stopped after {self.time_limit_s:g} s without reaching the goal')
+        if self.cancel is not None and self.cancel():
+            raise PlannerCancelled('search cancelled by the caller')

@@ -1,0 +1,286 @@
+"""The search loop of :mod:`search`, compiled with numba when it is installed.
+
+The same best-first loop as the pure-Python one in
+:func:`~fusion_planner.core.global_planning.search.grid_search`, statement for
+statement: the same evaluation ``f = alpha * g + h``, the same ties (the open
+list is ordered by ``(f, h, index)``), the same move order and the same
+partial expansion of the variable neighbourhood, so both return the same path
+and counts. Only the container differs: the open list is a binary heap in
+three numpy arrays instead of a list of tuples.
+
+numba (``pip install numba``; Debian/Ubuntu ``python3-numba``) is optional.
+Without it :data:`AVAILABLE` is False and the search runs its pure-Python
+loop. The compiled code is cached on disk (numba's ``cache=True``), so only
+the first process on a machine pays for compiling; :func:`warm_up` makes a
+process load it when a map is prepared rather than at its first search.
+
+The loop runs in slices (:func:`run`): it returns to Python every so many
+expansions, so that the caller polls its deadline and cancellation exactly
+as the pure-Python loop does, and when the heap arrays must grow.
+"""
+
+import numpy as np
+
+try:
+    import numba
+except ImportError:  # optional: the pure-Python loop takes over
+    numba = None
+
+#: Whether the compiled loop can be used.
+AVAILABLE = numba is not None
+
+#: Status codes of :func:`run`.
+FOUND, EXHAUSTED, PAUSED, HEAP_FULL = range(4)
+
+#: Heuristic kinds (the codes of :mod:`search`).
+ZERO, MANHATTAN, EUCLIDEAN, OCTILE = range(4)
+
+#: Per-search cell state codes, as in :mod:`search`.
+START_CODE = 127
+CLOSED = 128
+
+#: A slice stops for a heap that has fewer free slots than this: one
+#: expansion pushes at most 16 moves and one re-queued entry.
+HEAP_MARGIN = 18
+
+_ROOT2_MINUS_2 = np.sqrt(2.0) - 2.0
+
+
+def _less(f1, h1, k1, f2, h2, k2):
+    """Tuple order ``(f1, h1, k1) < (f2, h2, k2)``."""
+    if f1 != f2:
+        return f1 < f2
+    if h1 != h2:
+        return h1 < h2
+    return k1 < k2
+
+
+def _push(heap, size, f, h, k):
+    """Push ``(f, h, k)`` on the heap of ``size`` entries; return the new size."""
+    i = size
+    while i > 0:
+        parent = (i - 1) >> 1
+        if not _less(f, h, k, heap[parent, 0], heap[parent, 1], heap[parent, 2]):
+            break
+        heap[i, 0] = heap[parent, 0]
+        heap[i, 1] = heap[parent, 1]
+        heap[i, 2] = heap[parent, 2]
+        i = parent
+    heap[i, 0] = f
+    heap[i, 1] = h
+    heap[i, 2] = k
+    return size + 1
+
+
+def _pop(heap, size):
+    """Remove the smallest entry; return its index ``k`` (``size`` > 0)."""
+    top = heap[0, 2]
+    size -= 1
+    f = heap[size, 0]
+    h = heap[size, 1]
+    k = heap[size, 2]
+    i = 0
+    while True:
+        child = 2 * i + 1
+        if child >= size:
+            break
+        right = child + 1
+        if right < size and _less(heap[right, 0], heap[right, 1], heap[right, 2],
+                                  heap[child, 0], heap[child, 1], heap[child, 2]):
+            child = right
+        if not _less(heap[child, 0], heap[child, 1], heap[child, 2], f, h, k):
+            break
+        heap[i, 0] = heap[child, 0]
+        heap[i, 1] = heap[child, 1]
+        heap[i, 2] = heap[child, 2]
+        i = child
+    heap[i, 0] = f
+    heap[i, 1] = h
+    heap[i, 2] = k
+    return np.int64(top)
+
+
+def _heuristic_term(kind, weight, y, x):
+    """``beta * w_n * h`` of an offset ``(y, x)`` to the goal [cells]."""
+    if kind == EUCLIDEAN:
+        return weight * np.sqrt(x * x + y * y)
+    if kind == OCTILE:
+        if y < 0:
+            y = -y
+        if x < 0:
+            x = -x
+        return weight * (x + y + _ROOT2_MINUS_2 * (x if x < y else y))
+    if kind == ZERO:
+        return 0.0
+    return weight * (abs(y) + abs(x))
+
+
+def _goal_sector(d_row, d_col):
+    """Sector of the direction from a cell to the goal, ``d`` = cell - goal."""
+    a_row = -d_row if d_row < 0 else d_row
+    a_col = -d_col if d_col < 0 else d_col
+    square = (a_row + a_col) * (a_row + a_col)
+    if square < 2 * a_col * a_col:
+        return 4 if d_col > 0 else 0
+    if square < 2 * a_row * a_row:
+        return 6 if d_row > 0 else 2
+    if d_row < 0:
+        return 1 if d_col < 0 else 3
+    if d_row == 0:
+        return 0
+    return 7 if d_col < 0 else 5
+
+
+def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width, goal,
+         kind, alpha, weight, variable, state, g, heap, counts, pause_at):
+    """Run the loop until the goal, an empty heap, ``pause_at`` expansions or a full heap.
+
+    ``counts`` holds ``[heap size, expanded, generated]`` and is updated in
+    place; returns a status code.
+    """
+    goal_row = goal // width
+    goal_col = goal % width
+    size = counts[0]
+    expanded = counts[1]
+    generated = counts[2]
+    capacity = heap.shape[0]
+    n_moves = offsets.shape[0]
+    all_bits = (1 << n_moves) - 1
+    status = EXHAUSTED
+    while True:
+        if size == 0:
+            status = EXHAUSTED
+            break
+        if expanded >= pause_at:
+            status = PAUSED
+            break
+        if size + HEAP_MARGIN > capacity:
+            status = HEAP_FULL
+            break
+        j = _pop(heap, size)
+        size -= 1
+        if j >= 0:
+            code = state[j]
+            if code & CLOSED:
+                continue
+            if j == goal:
+                status = FOUND
+                break
+            state[j] = code | CLOSED
+            expanded += 1
+            widened = not variable
+        else:
+            j = ~j
+            widened = True
+        row = j // width
+        col = j - row * width
+        d_row = row - goal_row
+        d_col = col - goal_col
+        mask = np.int64(allowed[j])
+        sector = 0
+        if variable:
+            sector = _goal_sector(d_row, d_col)
+            bits = mask & (rest_bits[sector] if widened else forward_bits[sector])
+        else:
+            bits = mask & all_bits
+        gj = g[j]
+        probe = False
+        while True:  # at most three passes: forward, probe, rest
+            opened = False
+            best_f = np.inf
+            best_h = 0.0
+            for i in range(n_moves):
+                if not (bits >> i) & 1:
+                    continue
+                k = j + offsets[i]
+                state_k = state[k]
+                if state_k & CLOSED:
+                    continue
+                ng = gj + costs[i]
+                if state_k and ng >= g[k]:
+                    continue
+                hk = _heuristic_term(kind, weight, d_row + d_rows[i], d_col + d_cols[i])
+                f = alpha * ng + hk
+                if probe:
+                    if f < best_f:
+                        best_f = f
+                        best_h = hk
+                    continue
+                if not state_k:
+                    generated += 1
+                g[k] = ng
+                state[k] = i + 1
+                size = _push(heap, size, f, hk, k)
+                opened = True
+            if probe:
+                if best_f == np.inf:
+                    break
+                if size > 0 and _less(heap[0, 0], heap[0, 1], heap[0, 2], best_f, best_h, ~j):
+                    size = _push(heap, size, best_f, best_h, ~j)
+                    break
+                bits = mask & rest_bits[sector]
+                probe = False
+                continue
+            if widened:
+                break
+            widened = True
+            bits = mask & rest_bits[sector]
+            probe = opened
+    counts[0] = size
+    counts[1] = expanded
+    counts[2] = generated
+    return status
+
+
+if AVAILABLE:
+    _less = numba.njit(cache=True, inline='always')(_less)
+    _push = numba.njit(cache=True)(_push)
+    _pop = numba.njit(cache=True)(_pop)
+    _heuristic_term = numba.njit(cache=True, inline='always')(_heuristic_term)
+    _goal_sector = numba.njit(cache=True, inline='always')(_goal_sector)
+    _run = numba.njit(cache=True, nogil=True)(_run)
+
+
+def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, heap, counts,
+        pause_at):
+    """Advance a search by one slice (compiled; needs :data:`AVAILABLE`).
+
+    Parameters
+    ----------
+    allowed : ndarray of uint8 or uint16
+        Legal-move bitmask of every padded cell (``PaddedGrid.allowed_moves``).
+    moves : tuple of ndarray
+        ``(offsets, costs, d_rows, d_cols, forward_bits, rest_bits)``: the
+        flat offset, cost [cells] and row/column step of each move, and per
+        goal sector the bitmask of the forward moves and of the others.
+    width : int
+        Padded row length [cells].
+    goal : int
+        Flat index of the goal.
+    kind : int
+        Heuristic kind (:data:`ZERO`, :data:`MANHATTAN`, ...).
+    alpha, weight : float
+        Weight of g, and ``beta * w_n``, the weight of h.
+    variable : bool
+        Variable neighbourhood (partial expansion).
+    state : ndarray of uint8
+        Per-cell search state, updated in place.
+    g : ndarray of float64
+        Per-cell cost [cells], updated in place.
+    heap : ndarray of float64, shape (capacity, 3)
+        The open list, rows ``(f, h, index)`` (an index is exact in a
+        float64), updated in place.
+    counts : ndarray of int64, shape (3,)
+        ``[heap size, expanded, generated]``, updated in place.
+    pause_at : int
+        Return once this many nodes have been expanded.
+
+    Returns
+    -------
+    int
+        :data:`FOUND`, :data:`EXHAUSTED`, :data:`PAUSED` or :data:`HEAP_FULL`
+        (grow the heap arrays and call again).
+    """
+    offsets, costs, d_rows, d_cols, forward_bits, rest_bits = moves
+    return _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width, goal,
+                kind, alpha, weight, variable, state, g, heap, counts, pause_at)
