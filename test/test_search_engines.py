@@ -1,4 +1,4 @@
-"""The compiled search loop against the pure-Python one.
+"""The compiled search loop against the pure-Python one, and jump points.
 
 Both loops of :func:`~fusion_planner.core.global_planning.search.grid_search`
 must give the same path, cost, expansion and generation counts for every
@@ -6,6 +6,10 @@ policy, on random maps and on structured ones (rooms with doors, mazes), and
 stop at the same expansion budget. The pure-Python loop is itself checked
 against an independent reference in test_search_properties.py, so equality
 here carries the optimality of A*-8 and Dijkstra over to the compiled loop.
+
+Jump-point pruning must find a path exactly when plain A*-8 does, at the
+same cost, through legal 8-moves that cut no corner, on the same maps and
+from starts inside the inflation.
 """
 
 import numpy as np
@@ -14,10 +18,13 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from fusion_planner.bench.building_map import BuildingSpec, building_map
-from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut
+from fusion_planner.core.errors import (
+    InvalidInput, NoValidPathCouldBeFound, PlannerCancelled, PlannerTimedOut)
 from fusion_planner.core.global_planning import kernel, search
 
-pytestmark = pytest.mark.skipif(not kernel.AVAILABLE, reason='numba is not installed')
+needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason='numba is not installed')
+#: The loops this machine can run.
+ENGINES = search.ENGINES if kernel.AVAILABLE else ('python',)
 
 #: Every policy the planner can run.
 POLICIES = {
@@ -104,6 +111,7 @@ def _maze(cells, rng):
     return occupied
 
 
+@needs_numba
 @pytest.mark.parametrize('name', sorted(POLICIES))
 @ENGINE_SETTINGS
 @given(scene=scenes())
@@ -113,6 +121,7 @@ def test_compiled_loop_matches_the_python_loop(name, scene):
     _assert_same(compiled, python)
 
 
+@needs_numba
 @pytest.mark.parametrize('name', ('astar-8', 'improved-8', 'dijkstra-8'))
 @settings(max_examples=60, deadline=None)
 @given(scene=scenes(), budget=st.integers(1, 400))
@@ -122,6 +131,7 @@ def test_both_loops_stop_at_the_same_expansion_budget(name, scene, budget):
     _assert_same(compiled, python)
 
 
+@needs_numba
 def test_a_search_that_outgrows_the_initial_heap_is_unchanged():
     """More open nodes than the compiled loop's first heap holds."""
     free = np.ones((200, 200), bool)
@@ -131,6 +141,7 @@ def test_a_search_that_outgrows_the_initial_heap_is_unchanged():
     assert compiled.generated > search._INITIAL_HEAP
 
 
+@needs_numba
 def test_search_reuses_its_grid_across_engines():
     free = ~building_map(BuildingSpec(side_m=24.0, room_m=12.0, door_m=2.0, wall_m=1.0,
                                       resolution=1.0, furniture_m=(1.0, 3.0),
@@ -150,3 +161,80 @@ def test_unknown_engine_is_refused():
     with pytest.raises(InvalidInput, match='engine'):
         search.grid_search(search.PaddedGrid(np.ones((3, 3), bool)), (0, 0), (2, 2),
                            search.astar(8), engine='fortran')
+
+
+def _assert_legal(cells, start, goal, free):
+    """Start and goal as asked; 8-moves onto free cells, no corner cut."""
+    assert tuple(cells[0]) == tuple(start) and tuple(cells[-1]) == tuple(goal)
+    steps = np.diff(cells, axis=0)
+    assert (np.abs(steps).max(axis=1) == 1).all() if len(steps) else True
+    for (r, c), (dr, dc) in zip(cells[:-1], steps):
+        assert free[r + dr, c + dc]
+        if dr and dc:
+            assert free[r + dr, c] and free[r, c + dc], 'a corner was cut'
+
+
+@pytest.mark.parametrize('heuristic', ('octile', 'euclidean', 'zero'))
+@ENGINE_SETTINGS
+@given(scene=scenes())
+def test_jump_points_find_the_plain_astar_cost(heuristic, scene):
+    occupied, start, goal = scene
+    free = ~occupied
+    grid = search.PaddedGrid(free)
+    plain = search.SearchPolicy(heuristic=heuristic)
+    jumping = search.SearchPolicy(heuristic=heuristic, jump_points=True)
+    try:
+        expected = search.grid_search(grid, start, goal, plain).cost
+    except NoValidPathCouldBeFound:
+        with pytest.raises(NoValidPathCouldBeFound):
+            search.grid_search(grid, start, goal, jumping)
+        return
+    found = search.grid_search(grid, start, goal, jumping)
+    assert found.cost == pytest.approx(expected, abs=1e-9)
+    _assert_legal(found.cells, start, goal, free)
+    steps = np.abs(np.diff(found.cells, axis=0)).sum(axis=1)
+    assert found.cost == pytest.approx(float(np.where(steps == 2, np.sqrt(2.0), 1.0).sum()),
+                                       abs=1e-9)
+
+
+@ENGINE_SETTINGS
+@given(scene=scenes(), seed=st.integers(0, 2**32 - 1))
+def test_jump_points_leave_a_blocked_start_by_the_shortest_way(scene, seed):
+    """A start that is not traversable (inside the inflation) is left as A*-8 leaves it."""
+    occupied, _, goal = scene
+    free = ~occupied
+    blocked = np.argwhere(occupied)
+    assume(len(blocked) > 0)
+    start = tuple(int(v) for v in blocked[np.random.default_rng(seed).integers(len(blocked))])
+    grid = search.PaddedGrid(free)
+    try:
+        expected = search.grid_search(grid, start, goal, search.astar(8)).cost
+    except NoValidPathCouldBeFound:
+        with pytest.raises(NoValidPathCouldBeFound):
+            search.grid_search(grid, start, goal, search.astar(8, jump_points=True))
+        return
+    found = search.grid_search(grid, start, goal, search.astar(8, jump_points=True))
+    assert found.cost == pytest.approx(expected, abs=1e-9)
+    _assert_legal(found.cells[1:], found.cells[1], goal, free)
+
+
+@pytest.mark.parametrize('engine', ENGINES)
+def test_jump_points_respect_the_limits(engine):
+    free = np.ones((300, 300), bool)
+    free[150, :-2] = False
+    grid = search.PaddedGrid(free)
+    policy = search.astar(8, jump_points=True)
+    with pytest.raises(PlannerTimedOut):
+        search.grid_search(grid, (0, 0), (299, 0), policy, max_expansions=1, engine=engine)
+    with pytest.raises(PlannerCancelled):
+        search.grid_search(grid, (0, 0), (299, 0), policy, cancel=lambda: True, engine=engine)
+    found = search.grid_search(grid, (0, 0), (299, 0), policy, engine=engine)
+    assert found.expanded < 100  # jump points, not cells
+    assert search.grid_search(grid, (5, 5), (5, 5), policy).cells.tolist() == [[5, 5]]
+
+
+def test_jump_points_need_the_fixed_8_neighbourhood():
+    with pytest.raises(InvalidInput, match='jump points'):
+        search.astar(4, jump_points=True)
+    with pytest.raises(InvalidInput, match='jump points'):
+        search.SearchPolicy(variable_neighbourhood=True, jump_points=True)

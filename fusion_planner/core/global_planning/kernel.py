@@ -44,6 +44,12 @@ CLOSED = 128
 HEAP_MARGIN = 18
 
 _ROOT2_MINUS_2 = np.sqrt(2.0) - 2.0
+ROOT2 = np.sqrt(2.0)
+
+#: The 8 directions of the jump-point search, ``(d_row, d_col)``: the
+#: orthogonal then the diagonal moves, as in :func:`neighbourhood.moves`.
+DIRECTION_ROWS = np.array([0, 1, 0, -1, 1, 1, -1, -1], np.int64)
+DIRECTION_COLS = np.array([1, 0, -1, 0, 1, -1, 1, -1], np.int64)
 
 
 def _less(f1, h1, k1, f2, h2, k2):
@@ -232,6 +238,147 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
     return status
 
 
+
+def _jump_straight(free, k, step, side_a, side_b, goal):
+    """Jump from cell ``k`` along an axis step; ``(jump point, steps)`` or ``(-1, 0)``.
+
+    Stops at the goal, or at a cell with a forced neighbour: a side cell
+    that is free while the side cell behind it is blocked (without corner
+    cutting, only such a side is not reached at least as cheaply by a
+    diagonal step taken earlier). Stops with -1 at a blocked cell.
+    """
+    n = 0
+    while True:
+        k += step
+        n += 1
+        if not free[k]:
+            return -1, 0
+        if k == goal:
+            return k, n
+        if (free[k + side_a] and not free[k - step + side_a]) or \
+                (free[k + side_b] and not free[k - step + side_b]):
+            return k, n
+
+
+def _jump_diagonal(free, k, step_row, step_col, goal):
+    """Jump from ``k`` along the diagonal ``step_row + step_col`` (flat offsets).
+
+    A diagonal step needs both cells it passes between free. Stops at the
+    goal or where a straight jump along either component finds a jump point.
+    """
+    step = step_row + step_col
+    n = 0
+    while True:
+        if not (free[k + step] and free[k + step_row] and free[k + step_col]):
+            return -1, 0
+        k += step
+        n += 1
+        if k == goal:
+            return k, n
+        if _jump_straight(free, k, step_col, step_row, -step_row, goal)[0] >= 0 or \
+                _jump_straight(free, k, step_row, step_col, -step_col, goal)[0] >= 0:
+            return k, n
+
+
+def _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts, pause_at):
+    """Jump-point search (8-neighbourhood, no corner cutting) until a stop.
+
+    The same contract as :func:`_run`, on the traversable bytes ``free``;
+    ``state`` holds the direction (1..8, :data:`DIRECTIONS` order) that
+    reached a jump point, ``parent`` its predecessor jump point.
+    """
+    goal_row = goal // width
+    goal_col = goal % width
+    size = counts[0]
+    expanded = counts[1]
+    generated = counts[2]
+    capacity = heap.shape[0]
+    status = EXHAUSTED
+    while True:
+        if size == 0:
+            status = EXHAUSTED
+            break
+        if expanded >= pause_at:
+            status = PAUSED
+            break
+        if size + HEAP_MARGIN > capacity:
+            status = HEAP_FULL
+            break
+        j = _pop(heap, size)
+        size -= 1
+        code = state[j]
+        if code & CLOSED:
+            continue
+        if j == goal:
+            status = FOUND
+            break
+        state[j] = code | CLOSED
+        expanded += 1
+        row = j // width
+        col = j - row * width
+        gj = g[j]
+        for d in range(8):
+            d_row = DIRECTION_ROWS[d]
+            d_col = DIRECTION_COLS[d]
+            if code != START_CODE and not _natural_or_forced(
+                    free, j, width, DIRECTION_ROWS[code - 1], DIRECTION_COLS[code - 1],
+                    d_row, d_col):
+                continue
+            if d_row != 0 and d_col != 0:
+                k, n = _jump_diagonal(free, j, d_row * width, d_col, goal)
+                cost = n * ROOT2
+            elif d_row != 0:
+                k, n = _jump_straight(free, j, d_row * width, 1, -1, goal)
+                cost = n * 1.0
+            else:
+                k, n = _jump_straight(free, j, d_col, width, -width, goal)
+                cost = n * 1.0
+            if k < 0:
+                continue
+            state_k = state[k]
+            if state_k & CLOSED:
+                continue
+            ng = gj + cost
+            if state_k and ng >= g[k]:
+                continue
+            hk = _heuristic_term(kind, weight, row + n * d_row - goal_row,
+                                 col + n * d_col - goal_col)
+            if not state_k:
+                generated += 1
+            g[k] = ng
+            state[k] = d + 1
+            parent[k] = j
+            size = _push(heap, size, alpha * ng + hk, hk, k)
+    counts[0] = size
+    counts[1] = expanded
+    counts[2] = generated
+    return status
+
+
+def _natural_or_forced(free, j, width, in_row, in_col, d_row, d_col):
+    """Whether direction ``(d_row, d_col)`` is searched from a jump point
+    reached along ``(in_row, in_col)``.
+
+    After a diagonal: its two components and itself. After a straight
+    move: itself, and towards a side whose cell is free while the side cell
+    behind is blocked, that side and the diagonal ahead on it.
+    """
+    if in_row != 0 and in_col != 0:
+        return (d_row == in_row and d_col == in_col) or (d_row == in_row and d_col == 0) \
+            or (d_row == 0 and d_col == in_col)
+    if d_row == in_row and d_col == in_col:
+        return True
+    # Straight arrival: the side is the component across the arrival axis.
+    side_row = d_row if in_row == 0 else 0
+    side_col = d_col if in_col == 0 else 0
+    if side_row == 0 and side_col == 0:
+        return False  # backwards
+    if (d_row != 0 and d_col != 0) and not (d_row == in_row or d_col == in_col):
+        return False  # the diagonal behind
+    side = side_row * width + side_col
+    behind = in_row * width + in_col
+    return bool(free[j + side]) and not free[j - behind + side]
+
 if AVAILABLE:
     _less = numba.njit(cache=True, inline='always')(_less)
     _push = numba.njit(cache=True)(_push)
@@ -239,6 +386,10 @@ if AVAILABLE:
     _heuristic_term = numba.njit(cache=True, inline='always')(_heuristic_term)
     _goal_sector = numba.njit(cache=True, inline='always')(_goal_sector)
     _run = numba.njit(cache=True, nogil=True)(_run)
+    _jump_straight = numba.njit(cache=True)(_jump_straight)
+    _jump_diagonal = numba.njit(cache=True)(_jump_diagonal)
+    _natural_or_forced = numba.njit(cache=True, inline='always')(_natural_or_forced)
+    _jump_run = numba.njit(cache=True, nogil=True)(_jump_run)
 
 
 def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, heap, counts,
@@ -284,3 +435,29 @@ def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, he
     offsets, costs, d_rows, d_cols, forward_bits, rest_bits = moves
     return _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width, goal,
                 kind, alpha, weight, variable, state, g, heap, counts, pause_at)
+
+
+def jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts, pause_at):
+    """Advance a jump-point search by one slice.
+
+    Compiled with numba when :data:`AVAILABLE`, plain Python otherwise (the
+    same code, slower).
+
+    Parameters
+    ----------
+    free : ndarray of uint8
+        Traversable padded cells (``PaddedGrid.passable``); the border is
+        blocked, so jumps stop inside.
+    parent : ndarray of int64
+        Per-cell predecessor jump point, updated in place.
+    width, goal, kind, alpha, weight, state, g, heap, counts, pause_at
+        As for :func:`run`; ``state`` holds 1 + the direction that reached a
+        jump point instead of a move code.
+
+    Returns
+    -------
+    int
+        A status code as for :func:`run`.
+    """
+    return _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts,
+                     pause_at)

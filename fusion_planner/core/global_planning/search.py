@@ -98,6 +98,10 @@ class SearchPolicy:
     variable_neighbourhood : bool
         Search only the moves heading towards the goal (section 1.3.1),
         widening when they make no progress.
+    jump_points : bool
+        Jump-point pruning (8-neighbourhood, fixed neighbourhood only): the
+        same optimal cost with far fewer expansions where open areas and
+        walls alternate. See :func:`grid_search`.
     """
 
     neighbourhood: int = 8
@@ -106,6 +110,7 @@ class SearchPolicy:
     beta: float = 1.0
     gamma: float = 0.0
     variable_neighbourhood: bool = False
+    jump_points: bool = False
 
     def __post_init__(self):
         if self.neighbourhood not in nbh.SUPPORTED:
@@ -118,6 +123,8 @@ class SearchPolicy:
                 raise InvalidInput(f'{name} must be a positive number, got {value!r}')
         if not (isinstance(self.gamma, (int, float)) and math.isfinite(self.gamma) and self.gamma >= 0):
             raise InvalidInput(f'gamma must be a non-negative number, got {self.gamma!r}')
+        if self.jump_points and (self.neighbourhood != 8 or self.variable_neighbourhood):
+            raise InvalidInput('jump points need the fixed 8-neighbourhood')
 
 
 def dijkstra(neighbourhood=8):
@@ -125,15 +132,16 @@ def dijkstra(neighbourhood=8):
     return SearchPolicy(neighbourhood=neighbourhood, heuristic='zero')
 
 
-def astar(neighbourhood=8, heuristic=None):
-    """Policy of the classic A* (eq. 1).
+def astar(neighbourhood=8, heuristic=None, jump_points=False):
+    """Policy of the classic A* (eq. 1), optionally with jump points (8 only).
 
     The default heuristic is the tightest admissible one for the
     neighbourhood: Manhattan for 4, octile for 8, Euclidean for 16.
     """
     if heuristic is None:
         heuristic = {4: 'manhattan', 8: 'octile', 16: 'euclidean'}.get(neighbourhood, 'octile')
-    return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic)
+    return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic,
+                        jump_points=jump_points)
 
 
 def improved_astar(alpha=1.0, beta=1.0, gamma=0.2, neighbourhood=8, heuristic='euclidean'):
@@ -269,7 +277,7 @@ class PaddedGrid:
         self.passable = bytearray(padded.data)
         self._allowed = {}
         self._tables = {}
-        self._cost_pool = []
+        self._pools = {'d': [], 'q': []}
 
     def index(self, cell):
         """Flat index of a ``(row, col)`` cell."""
@@ -394,19 +402,21 @@ class PaddedGrid:
         if kernel.AVAILABLE:
             _warm_up(neighbourhood)
 
-    def _take_costs(self):
-        """A float cost array of padded-grid size (contents undefined).
+    def _take(self, typecode):
+        """A per-cell array of padded-grid size (contents undefined).
 
+        ``typecode`` ``'d'`` (float costs) or ``'q'`` (int64 parents).
         Backed by an anonymous memory mapping, so only the pages a search
-        writes take memory; kept for the next search on this grid.
+        writes take memory; give it back with :meth:`_give` for the next
+        search on this grid.
         """
         try:
-            return self._cost_pool.pop()
+            return self._pools[typecode].pop()
         except IndexError:
-            return memoryview(mmap.mmap(-1, 8 * len(self.passable))).cast('d')
+            return memoryview(mmap.mmap(-1, 8 * len(self.passable))).cast(typecode)
 
-    def _give_costs(self, costs):
-        self._cost_pool.append(costs)
+    def _give(self, values):
+        self._pools[values.format].append(values)
 
 
 def _bits(indices):
@@ -536,31 +546,24 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
         weight = policy.beta * heuristic_weight(start_distance, start_distance, policy.gamma)
     limits = _Limits(max_expansions, time_limit_s, cancel)
     state = bytearray(len(grid.passable))
-    g = grid._take_costs()
+    g = grid._take('d')
     try:
         state[s] = _START_CODE
         g[s] = 0.0
         h0 = weight * _heuristic(kind, start_row - goal_row, start_col - goal_col)
-        loop = _compiled_loop if engine == 'compiled' else _python_loop
-        found, expanded, generated = loop(grid, policy, s, t, kind, weight, h0, state, g, limits)
-        if not found:
+        if policy.jump_points:
+            loop = _jump_loop
+        else:
+            loop = _compiled_loop if engine == 'compiled' else _python_loop
+        chain, expanded, generated = loop(grid, policy, s, t, kind, weight, h0, state, g,
+                                          limits)
+        if chain is None:
             raise NoValidPathCouldBeFound(
                 f'no path from cell {tuple(start)} to cell {tuple(goal)} '
                 f'({expanded} cells expanded)')
         cost = g[t]
     finally:
-        grid._give_costs(g)
-
-    offsets = grid.move_tables(policy.neighbourhood)[3]
-    chain = [t]
-    j = t
-    for _ in range(len(state)):  # bounded: a path visits each cell once
-        code = state[j] & _CODE_BITS
-        if code == _START_CODE:
-            break
-        j -= offsets[code - 1]
-        chain.append(j)
-    chain.reverse()
+        grid._give(g)
     expanded_cells = None
     if return_expanded:
         closed = np.flatnonzero(np.frombuffer(state, dtype=np.uint8) & _CLOSED)
@@ -572,7 +575,8 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
 def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     """The search loop in pure Python; see :func:`grid_search`.
 
-    Returns ``(found, expanded, generated)``; fills ``state`` and ``g``.
+    Returns ``(path, expanded, generated)``, the path a list of flat
+    indices from start to goal or None; fills ``state`` and ``g``.
     """
     width = grid.width
     goal_row, goal_col = divmod(t, width)
@@ -696,13 +700,13 @@ def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
             moves = rest[sector][mask]
             # No progress ahead: widen at once; else only measure the rest.
             probe = opened
-    return found, expanded, generated
+    return _traced(grid, policy, state, t) if found else None, expanded, generated
 
 
 def _compiled_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     """The search loop of :mod:`kernel`, run in slices; see :func:`grid_search`.
 
-    Returns ``(found, expanded, generated)``; fills ``state`` and ``g``.
+    Returns as :func:`_python_loop`.
     """
     allowed = grid.allowed_array(policy.neighbourhood)
     moves = grid.kernel_moves(policy.neighbourhood)
@@ -722,7 +726,72 @@ def _compiled_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
         elif status == kernel.PAUSED:
             limits.check(int(counts[1]))
         else:
-            return status == kernel.FOUND, int(counts[1]), int(counts[2])
+            path = _traced(grid, policy, state, t) if status == kernel.FOUND else None
+            return path, int(counts[1]), int(counts[2])
+
+
+def _jump_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
+    """Jump-point search (:func:`kernel.jump_run`), run in slices.
+
+    Returns as :func:`_python_loop`; the path is filled in between the
+    jump points, cell by cell.
+    """
+    free = np.frombuffer(grid.passable, dtype=np.uint8)
+    state_array = np.frombuffer(state, dtype=np.uint8)
+    g_array = np.frombuffer(g, dtype=np.float64)
+    parent = grid._take('q')
+    try:
+        parent_array = np.frombuffer(parent, dtype=np.int64)
+        heap = np.empty((_INITIAL_HEAP, 3))
+        heap[0] = (h0, h0, s)
+        counts = np.array([1, 0, 1], dtype=np.int64)  # heap size, expanded, generated
+        limits.check(0)
+        while True:
+            pause_at = min(counts[1] + _COMPILED_SLICE, limits.budget)
+            status = kernel.jump_run(free, grid.width, t, kind, float(policy.alpha), weight,
+                                     state_array, g_array, parent_array, heap, counts,
+                                     pause_at)
+            if status == kernel.HEAP_FULL:
+                heap = np.concatenate([heap, np.empty_like(heap)])
+            elif status == kernel.PAUSED:
+                limits.check(int(counts[1]))
+            else:
+                break
+        path = None
+        if status == kernel.FOUND:
+            jumps = [t]
+            while jumps[-1] != s:  # bounded: parents lead back to the start
+                jumps.append(parent[jumps[-1]])
+            path = _filled(jumps[::-1], grid.width)
+        return path, int(counts[1]), int(counts[2])
+    finally:
+        grid._give(parent)
+
+
+def _filled(jumps, width):
+    """Flat indices of every cell on straight or diagonal runs between jump points."""
+    path = [jumps[0]]
+    for a, b in zip(jumps, jumps[1:]):
+        (ra, ca), (rb, cb) = divmod(a, width), divmod(b, width)
+        steps = max(abs(rb - ra), abs(cb - ca))
+        step = ((rb > ra) - (rb < ra)) * width + (cb > ca) - (cb < ca)
+        path.extend(range(a + step, b + step, step) if steps else ())
+    return path
+
+
+def _traced(grid, policy, state, t):
+    """The path to ``t`` rebuilt from the move codes in ``state``, start first."""
+    offsets = grid.move_tables(policy.neighbourhood)[3]
+    chain = [t]
+    j = t
+    for _ in range(len(state)):  # bounded: a path visits each cell once
+        code = state[j] & _CODE_BITS
+        if code == _START_CODE:
+            break
+        j -= offsets[code - 1]
+        chain.append(j)
+    chain.reverse()
+    return chain
 
 
 def _heuristic(kind, d_row, d_col):
