@@ -200,6 +200,8 @@ PLANNERS = {
                             'octile: 1 / sqrt 2', True),
     'astar': PlannerInfo('astar', 'ours A*-8', 'ours', OUR_LOOP, False,
                          'octile: 1 / sqrt 2, octile h', True),
+    'jps': PlannerInfo('jps', 'ours A*-8 jump points', 'ours', OUR_LOOP, False,
+                       'octile: 1 / sqrt 2, octile h', True),
     'improved': PlannerInfo('improved', 'ours improved A*', 'ours', OUR_LOOP, False,
                             'octile: 1 / sqrt 2, weighted Euclidean h', False),
     'improved_refined': PlannerInfo('improved_refined', 'ours improved+refine', 'ours', OUR_LOOP,
@@ -680,7 +682,8 @@ class _Ours:
     def prepare(self, scenario, free):
         config = {
             'dijkstra': PlannerConfig(algorithm='dijkstra', refine=False),
-            'astar': PlannerConfig(algorithm='astar', refine=False),
+            'astar': PlannerConfig(algorithm='astar', refine=False, jump_points=False),
+            'jps': PlannerConfig(algorithm='astar', refine=False),
             'improved': PlannerConfig(algorithm='improved', refine=False),
             'improved_refined': PlannerConfig(algorithm='improved', refine=True),
         }[self.name]
@@ -1104,7 +1107,7 @@ def evaluate_targets(rows, sides):
         limit = speed_target(scenario, suite_of[scenario])
         fast = by.get((scenario, 'pyastar2d'))
         tcod = by.get((scenario, 'tcod'))
-        for name in ('improved', 'astar'):
+        for name in ('improved', 'jps', 'astar'):
             ours = by.get((scenario, name))
             label = PLANNERS[name].label
             if ours and ours.found and fast and fast.found:
@@ -1151,10 +1154,13 @@ def evaluate_targets(rows, sides):
             verdicts.append(_verdict(
                 f'{scenario}: A*-8 faster than every pure-Python peer (CPU)', not slower,
                 ', '.join(compared) + (f'; slower than {", ".join(slower)}' if slower else '')))
-        if astar.optimal_exact is not None and astar.found:
-            verdicts.append(_verdict(f'{scenario}: A*-8 exactly optimal',
-                                     astar.optimal_exact == astar.found,
-                                     f'{astar.optimal_exact}/{astar.found} paths at the optimum'))
+    for scenario in scenarios:
+        for name in ('astar', 'jps'):
+            row = by.get((scenario, name))
+            if row is not None and row.optimal_exact is not None and row.found:
+                verdicts.append(_verdict(f'{scenario}: {PLANNERS[name].label} exactly optimal',
+                                         row.optimal_exact == row.found,
+                                         f'{row.optimal_exact}/{row.found} paths at the optimum'))
     preps = [r for r in rows
              if r.suite == 'nav2' and r.planner in OURS and not math.isnan(r.prep_s)]
     if preps:
