@@ -1,33 +1,46 @@
-"""The search loop of :mod:`search`, compiled with numba when it is installed.
+"""The search loops of :mod:`search`, compiled with numba when it is installed.
 
-The same best-first loop as the pure-Python one in
-:func:`~fusion_planner.core.global_planning.search.grid_search`, statement for
-statement: the same evaluation ``f = alpha * g + h``, the same ties (the open
-list is ordered by ``(f, h, index)``), the same move order and the same
-partial expansion of the variable neighbourhood, so both return the same path
-and counts. Only the container differs: the open list is a binary heap in
-three numpy arrays instead of a list of tuples.
+- :func:`run`: the same best-first loop as the pure-Python one in
+  :func:`~fusion_planner.core.global_planning.search.grid_search`, statement
+  for statement: the same evaluation ``f = alpha * g + h``, the same ties
+  (the open list is ordered by ``(f, h, index)``), the same move order and
+  the same partial expansion of the variable neighbourhood, so both return
+  the same path and counts. Only the container differs: the open list is a
+  binary heap in one numpy array instead of a list of tuples.
+- :func:`jump_run`: jump-point search (Harabor and Grastien, AAAI 2011; the
+  rules without corner cutting of ICAPS 2014) for A* with the
+  8-neighbourhood. It has no separate pure-Python version: without numba
+  the same functions run as plain Python.
 
 numba (``pip install numba``; Debian/Ubuntu ``python3-numba``) is optional.
 Without it :data:`AVAILABLE` is False and the search runs its pure-Python
-loop. The compiled code is cached on disk (numba's ``cache=True``), so only
-the first process on a machine pays for compiling; :func:`warm_up` makes a
-process load it when a map is prepared rather than at its first search.
+loop. numba is imported on the first search, not with this module (the
+import alone takes about 0.4 s). The compiled code is cached on disk
+(numba's ``cache=True``), so only the first process on a machine pays for
+compiling (about 10 s); a later process loads it in about 0.3 s, which
+``PaddedGrid.prepare`` spends when a map is prepared rather than at its
+first search.
 
-The loop runs in slices (:func:`run`): it returns to Python every so many
-expansions, so that the caller polls its deadline and cancellation exactly
-as the pure-Python loop does, and when the heap arrays must grow.
+The loops run in slices: they return to Python every so many expansions, so
+that the caller polls its deadline and cancellation, and when the heap must
+grow.
 """
+
+import importlib.util
 
 import numpy as np
 
-try:
-    import numba
-except ImportError:  # optional: the pure-Python loop takes over
-    numba = None
+
+def _numba_installed():
+    """Whether numba can be imported (without importing it: that takes 0.4 s)."""
+    try:
+        return importlib.util.find_spec('numba') is not None
+    except ValueError:  # a module set to None in sys.modules
+        return False
+
 
 #: Whether the compiled loop can be used.
-AVAILABLE = numba is not None
+AVAILABLE = _numba_installed()
 
 #: Status codes of :func:`run`.
 FOUND, EXHAUSTED, PAUSED, HEAP_FULL = range(4)
@@ -379,7 +392,22 @@ def _natural_or_forced(free, j, width, in_row, in_col, d_row, d_col):
     behind = in_row * width + in_col
     return bool(free[j + side]) and not free[j - behind + side]
 
-if AVAILABLE:
+#: Whether :func:`_compile` has run.
+_compiled = False
+
+
+def _compile():
+    """Replace the loop's functions by numba's compiled ones, once per process.
+
+    numba is imported here, on the first search, not with this module. The
+    helpers are replaced first: numba binds the globals a function calls
+    when it compiles that function.
+    """
+    global _compiled, _less, _push, _pop, _heuristic_term, _goal_sector, _run
+    global _jump_straight, _jump_diagonal, _natural_or_forced, _jump_run
+    if _compiled or not AVAILABLE:
+        return
+    import numba
     _less = numba.njit(cache=True, inline='always')(_less)
     _push = numba.njit(cache=True)(_push)
     _pop = numba.njit(cache=True)(_pop)
@@ -390,6 +418,7 @@ if AVAILABLE:
     _jump_diagonal = numba.njit(cache=True)(_jump_diagonal)
     _natural_or_forced = numba.njit(cache=True, inline='always')(_natural_or_forced)
     _jump_run = numba.njit(cache=True, nogil=True)(_jump_run)
+    _compiled = True
 
 
 def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, heap, counts,
@@ -432,6 +461,7 @@ def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, he
         :data:`FOUND`, :data:`EXHAUSTED`, :data:`PAUSED` or :data:`HEAP_FULL`
         (grow the heap arrays and call again).
     """
+    _compile()
     offsets, costs, d_rows, d_cols, forward_bits, rest_bits = moves
     return _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width, goal,
                 kind, alpha, weight, variable, state, g, heap, counts, pause_at)
@@ -459,5 +489,6 @@ def jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, cou
     int
         A status code as for :func:`run`.
     """
+    _compile()
     return _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts,
                      pause_at)
