@@ -56,7 +56,7 @@ def quick_random(tmp_path_factory):
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         status = main(['bench', 'peers', '--quick', '--suites', 'random', '--json',
-                       '--no-progress', '--planners', 'dijkstra', 'astar', 'improved',
+                       '--no-progress', '--planners', 'dijkstra', 'astar', 'jps', 'improved',
                        'improved_refined', 'pyastar2d', 'tcod', 'pathfinding', 'networkx'])
     return status, json.loads(out.getvalue())
 

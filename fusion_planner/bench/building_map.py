@@ -165,9 +165,9 @@ def far_pairs(traversable, count, min_distance_cells, seed, max_draws=100_000):
     Parameters
     ----------
     traversable : ndarray of bool, shape (H, W)
-        Cells outside the inflation.
+        Cells a robot centre may occupy.
     count : int
-        Pairs wanted.
+        Number of pairs to return.
     min_distance_cells : float
         Least straight-line distance between start and goal [cells].
     seed : int

@@ -27,6 +27,7 @@ grow.
 """
 
 import importlib.util
+import math
 
 import numpy as np
 
@@ -42,8 +43,8 @@ def _numba_installed():
 #: Whether the compiled loop can be used.
 AVAILABLE = _numba_installed()
 
-#: Status codes of :func:`run`.
-FOUND, EXHAUSTED, PAUSED, HEAP_FULL = range(4)
+#: Status codes of :func:`run` (RUNNING: inside a slice only).
+FOUND, EXHAUSTED, PAUSED, HEAP_FULL, RUNNING = range(5)
 
 #: Heuristic kinds (the codes of :mod:`search`).
 ZERO, MANHATTAN, EUCLIDEAN, OCTILE = range(4)
@@ -56,8 +57,8 @@ CLOSED = 128
 #: expansion pushes at most 16 moves and one re-queued entry.
 HEAP_MARGIN = 18
 
-_ROOT2_MINUS_2 = np.sqrt(2.0) - 2.0
-ROOT2 = np.sqrt(2.0)
+_ROOT2_MINUS_2 = math.sqrt(2.0) - 2.0
+ROOT2 = math.sqrt(2.0)
 
 #: The 8 directions of the jump-point search, ``(d_row, d_col)``: the
 #: orthogonal then the diagonal moves, as in :func:`neighbourhood.moves`.
@@ -79,15 +80,11 @@ def _push(heap, size, f, h, k):
     i = size
     while i > 0:
         parent = (i - 1) >> 1
-        if not _less(f, h, k, heap[parent, 0], heap[parent, 1], heap[parent, 2]):
+        if not _less_than_row(f, h, k, heap, parent):
             break
-        heap[i, 0] = heap[parent, 0]
-        heap[i, 1] = heap[parent, 1]
-        heap[i, 2] = heap[parent, 2]
+        _copy_row(heap, i, parent)
         i = parent
-    heap[i, 0] = f
-    heap[i, 1] = h
-    heap[i, 2] = k
+    _set_row(heap, i, f, h, k)
     return size + 1
 
 
@@ -104,25 +101,56 @@ def _pop(heap, size):
         if child >= size:
             break
         right = child + 1
-        if right < size and _less(heap[right, 0], heap[right, 1], heap[right, 2],
-                                  heap[child, 0], heap[child, 1], heap[child, 2]):
+        if right < size and _less_than_row(heap[right, 0], heap[right, 1], heap[right, 2],
+                                           heap, child):
             child = right
         if not _less(heap[child, 0], heap[child, 1], heap[child, 2], f, h, k):
             break
-        heap[i, 0] = heap[child, 0]
-        heap[i, 1] = heap[child, 1]
-        heap[i, 2] = heap[child, 2]
+        _copy_row(heap, i, child)
         i = child
-    heap[i, 0] = f
-    heap[i, 1] = h
-    heap[i, 2] = k
+    _set_row(heap, i, f, h, k)
     return np.int64(top)
+
+
+def _less_than_row(f, h, k, heap, row):
+    """``(f, h, k) < heap[row]`` in tuple order."""
+    return _less(f, h, k, heap[row, 0], heap[row, 1], heap[row, 2])
+
+
+def _copy_row(heap, dst, src):
+    """``heap[dst] = heap[src]``."""
+    heap[dst, 0] = heap[src, 0]
+    heap[dst, 1] = heap[src, 1]
+    heap[dst, 2] = heap[src, 2]
+
+
+def _set_row(heap, row, f, h, k):
+    """``heap[row] = (f, h, k)``."""
+    heap[row, 0] = f
+    heap[row, 1] = h
+    heap[row, 2] = k
+
+
+def _stop(size, expanded, pause_at, capacity):
+    """Why a slice stops before its next pop, or :data:`RUNNING`.
+
+    A slice that reached ``pause_at`` pauses even with an empty heap, so that
+    an exhausted expansion budget is reported as such, as the pure-Python
+    loop does.
+    """
+    if expanded >= pause_at:
+        return PAUSED
+    if size == 0:
+        return EXHAUSTED
+    if size + HEAP_MARGIN > capacity:
+        return HEAP_FULL
+    return RUNNING
 
 
 def _heuristic_term(kind, weight, y, x):
     """``beta * w_n * h`` of an offset ``(y, x)`` to the goal [cells]."""
     if kind == EUCLIDEAN:
-        return weight * np.sqrt(x * x + y * y)
+        return weight * math.sqrt(x * x + y * y)
     if kind == OCTILE:
         if y < 0:
             y = -y
@@ -135,7 +163,13 @@ def _heuristic_term(kind, weight, y, x):
 
 
 def _goal_sector(d_row, d_col):
-    """Sector of the direction from a cell to the goal, ``d`` = cell - goal."""
+    """Sector (:func:`neighbourhood.sector_of`) of the direction from a cell
+    to the goal, ``d`` = cell - goal, in integers without trigonometry.
+
+    The direction is near an axis when it lies within 22.5 degrees of it,
+    i.e. ``|minor| < tan(22.5 deg) |major|``, tested exactly as
+    ``(|minor| + |major|)**2 < 2 major**2`` (tan 22.5 deg = sqrt 2 - 1).
+    """
     a_row = -d_row if d_row < 0 else d_row
     a_col = -d_col if d_col < 0 else d_col
     square = (a_row + a_col) * (a_row + a_col)
@@ -165,16 +199,9 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
     capacity = heap.shape[0]
     n_moves = offsets.shape[0]
     all_bits = (1 << n_moves) - 1
-    status = EXHAUSTED
     while True:
-        if size == 0:
-            status = EXHAUSTED
-            break
-        if expanded >= pause_at:
-            status = PAUSED
-            break
-        if size + HEAP_MARGIN > capacity:
-            status = HEAP_FULL
+        status = _stop(size, expanded, pause_at, capacity)
+        if status != RUNNING:
             break
         j = _pop(heap, size)
         size -= 1
@@ -206,7 +233,7 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
         probe = False
         while True:  # at most three passes: forward, probe, rest
             opened = False
-            best_f = np.inf
+            best_f = math.inf
             best_h = 0.0
             for i in range(n_moves):
                 if not (bits >> i) & 1:
@@ -232,7 +259,7 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
                 size = _push(heap, size, f, hk, k)
                 opened = True
             if probe:
-                if best_f == np.inf:
+                if best_f == math.inf:
                     break
                 if size > 0 and _less(heap[0, 0], heap[0, 1], heap[0, 2], best_f, best_h, ~j):
                     size = _push(heap, size, best_f, best_h, ~j)
@@ -306,16 +333,9 @@ def _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, co
     expanded = counts[1]
     generated = counts[2]
     capacity = heap.shape[0]
-    status = EXHAUSTED
     while True:
-        if size == 0:
-            status = EXHAUSTED
-            break
-        if expanded >= pause_at:
-            status = PAUSED
-            break
-        if size + HEAP_MARGIN > capacity:
-            status = HEAP_FULL
+        status = _stop(size, expanded, pause_at, capacity)
+        if status != RUNNING:
             break
         j = _pop(heap, size)
         size -= 1
@@ -392,6 +412,11 @@ def _natural_or_forced(free, j, width, in_row, in_col, d_row, d_col):
     behind = in_row * width + in_col
     return bool(free[j + side]) and not free[j - behind + side]
 
+#: :func:`_goal_sector` and :func:`_heuristic_term` as plain Python, for the
+#: pure-Python loop.
+goal_sector = _goal_sector
+heuristic_term = _heuristic_term
+
 #: Whether :func:`_compile` has run.
 _compiled = False
 
@@ -403,14 +428,19 @@ def _compile():
     helpers are replaced first: numba binds the globals a function calls
     when it compiles that function.
     """
-    global _compiled, _less, _push, _pop, _heuristic_term, _goal_sector, _run
+    global _compiled, _less, _less_than_row, _copy_row, _set_row, _push, _pop, _stop
+    global _heuristic_term, _goal_sector, _run
     global _jump_straight, _jump_diagonal, _natural_or_forced, _jump_run
     if _compiled or not AVAILABLE:
         return
     import numba
     _less = numba.njit(cache=True, inline='always')(_less)
+    _less_than_row = numba.njit(cache=True, inline='always')(_less_than_row)
+    _copy_row = numba.njit(cache=True, inline='always')(_copy_row)
+    _set_row = numba.njit(cache=True, inline='always')(_set_row)
     _push = numba.njit(cache=True)(_push)
     _pop = numba.njit(cache=True)(_pop)
+    _stop = numba.njit(cache=True, inline='always')(_stop)
     _heuristic_term = numba.njit(cache=True, inline='always')(_heuristic_term)
     _goal_sector = numba.njit(cache=True, inline='always')(_goal_sector)
     _run = numba.njit(cache=True, nogil=True)(_run)

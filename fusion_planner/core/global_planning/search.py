@@ -71,12 +71,10 @@ _START_CODE = 127
 _CLOSED = 128
 _CODE_BITS = 127
 
-#: sqrt(2) - 2, the octile correction of eq. (4).
-_ROOT2_MINUS_2 = math.sqrt(2.0) - 2.0
-#: Heuristic kinds as small integers for the inline computation.
-_ZERO, _MANHATTAN, _EUCLIDEAN, _OCTILE = range(4)
-_HEURISTIC_CODES = {'zero': _ZERO, 'manhattan': _MANHATTAN, 'euclidean': _EUCLIDEAN,
-                    'octile': _OCTILE}
+#: Heuristic kinds as the small integers of :mod:`kernel`.
+_ZERO = kernel.ZERO
+_HEURISTIC_CODES = {'zero': kernel.ZERO, 'manhattan': kernel.MANHATTAN,
+                    'euclidean': kernel.EUCLIDEAN, 'octile': kernel.OCTILE}
 
 
 @dataclass(frozen=True)
@@ -438,25 +436,8 @@ def _shifted(values, offset, reach):
 
 
 def _sector(d_row, d_col):
-    """:func:`neighbourhood.sector_of` for integer offsets, without trigonometry.
-
-    The direction is near an axis when it lies within 22.5 degrees of it,
-    i.e. ``|minor| < tan(22.5 deg) |major|``, tested exactly in integers as
-    ``(|minor| + |major|)**2 < 2 major**2`` (tan 22.5 deg = sqrt 2 - 1).
-    """
-    ar = -d_row if d_row < 0 else d_row
-    ac = -d_col if d_col < 0 else d_col
-    total = ar + ac
-    square = total * total
-    if square < 2 * ac * ac:  # near the column axis
-        return 0 if d_col >= 0 else 4
-    if square < 2 * ar * ar:  # near the row axis
-        return 2 if d_row > 0 else 6
-    if d_row > 0:
-        return 1 if d_col > 0 else 3
-    if d_row == 0:  # only the start == goal offset (0, 0) gets here
-        return 0
-    return 7 if d_col > 0 else 5
+    """:func:`neighbourhood.sector_of` for integer offsets, without trigonometry."""
+    return kernel.goal_sector(-d_row, -d_col)
 
 
 def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=None,
@@ -584,13 +565,10 @@ def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     full, forward, rest, _ = grid.move_tables(policy.neighbourhood)
     variable = policy.variable_neighbourhood
     alpha = float(policy.alpha)
-    sqrt = math.sqrt
     push, pop = heapq.heappush, heapq.heappop
     closed_bit = _CLOSED
-    euclidean = kind == _EUCLIDEAN
-    octile = kind == _OCTILE
-    zero = kind == _ZERO
-    root2_minus_2 = _ROOT2_MINUS_2
+    goal_sector = kernel.goal_sector
+    heuristic_term = kernel.heuristic_term
     heap = [(h0, h0, s)]
     generated = 1
     expanded = 0
@@ -620,20 +598,7 @@ def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
         d_col = col - goal_col
         mask = allowed[j]
         if variable:
-            # _sector(-d_row, -d_col), inline: the goal direction's sector.
-            a_row = -d_row if d_row < 0 else d_row
-            a_col = -d_col if d_col < 0 else d_col
-            square = (a_row + a_col) * (a_row + a_col)
-            if square < 2 * a_col * a_col:
-                sector = 4 if d_col > 0 else 0
-            elif square < 2 * a_row * a_row:
-                sector = 6 if d_row > 0 else 2
-            elif d_row < 0:
-                sector = 1 if d_col < 0 else 3
-            elif d_row == 0:
-                sector = 0
-            else:
-                sector = 7 if d_col < 0 else 5
+            sector = goal_sector(d_row, d_col)
             moves = rest[sector][mask] if widened else forward[sector][mask]
         else:
             moves = full[mask]
@@ -651,23 +616,7 @@ def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
                 ng = gj + cost
                 if state_k and ng >= g[k]:
                     continue
-                # The heuristic term beta * h * w_n, inline (eqs. 2-4, 8).
-                if euclidean:
-                    y = d_row + dr
-                    x = d_col + dc
-                    hk = weight * sqrt(x * x + y * y)
-                elif octile:
-                    y = d_row + dr
-                    x = d_col + dc
-                    if y < 0:
-                        y = -y
-                    if x < 0:
-                        x = -x
-                    hk = weight * (x + y + root2_minus_2 * (x if x < y else y))
-                elif zero:
-                    hk = 0.0
-                else:
-                    hk = weight * (abs(d_row + dr) + abs(d_col + dc))
+                hk = heuristic_term(kind, weight, d_row + dr, d_col + dc)  # eqs. 2-4, 8
                 f = alpha * ng + hk
                 if probe:
                     if f < best_f:
@@ -712,22 +661,14 @@ def _compiled_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     moves = grid.kernel_moves(policy.neighbourhood)
     state_array = np.frombuffer(state, dtype=np.uint8)
     g_array = np.frombuffer(g, dtype=np.float64)
-    heap = np.empty((_INITIAL_HEAP, 3))
-    heap[0] = (h0, h0, s)
-    counts = np.array([1, 0, 1], dtype=np.int64)  # heap size, expanded, generated
-    limits.check(0)
-    while True:
-        pause_at = min(counts[1] + _COMPILED_SLICE, limits.budget)
-        status = kernel.run(allowed, moves, grid.width, t, kind, float(policy.alpha), weight,
-                            policy.variable_neighbourhood, state_array, g_array, heap, counts,
-                            pause_at)
-        if status == kernel.HEAP_FULL:
-            heap = np.concatenate([heap, np.empty_like(heap)])
-        elif status == kernel.PAUSED:
-            limits.check(int(counts[1]))
-        else:
-            path = _traced(grid, policy, state, t) if status == kernel.FOUND else None
-            return path, int(counts[1]), int(counts[2])
+
+    def run_slice(heap, counts, pause_at):
+        return kernel.run(allowed, moves, grid.width, t, kind, float(policy.alpha), weight,
+                          policy.variable_neighbourhood, state_array, g_array, heap, counts,
+                          pause_at)
+
+    found, expanded, generated = _in_slices(run_slice, s, h0, limits)
+    return _traced(grid, policy, state, t) if found else None, expanded, generated
 
 
 def _jump_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
@@ -740,32 +681,43 @@ def _jump_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     state_array = np.frombuffer(state, dtype=np.uint8)
     g_array = np.frombuffer(g, dtype=np.float64)
     parent = grid._take('q')
+    parent_array = np.frombuffer(parent, dtype=np.int64)
+
+    def run_slice(heap, counts, pause_at):
+        return kernel.jump_run(free, grid.width, t, kind, float(policy.alpha), weight,
+                               state_array, g_array, parent_array, heap, counts, pause_at)
+
     try:
-        parent_array = np.frombuffer(parent, dtype=np.int64)
-        heap = np.empty((_INITIAL_HEAP, 3))
-        heap[0] = (h0, h0, s)
-        counts = np.array([1, 0, 1], dtype=np.int64)  # heap size, expanded, generated
-        limits.check(0)
-        while True:
-            pause_at = min(counts[1] + _COMPILED_SLICE, limits.budget)
-            status = kernel.jump_run(free, grid.width, t, kind, float(policy.alpha), weight,
-                                     state_array, g_array, parent_array, heap, counts,
-                                     pause_at)
-            if status == kernel.HEAP_FULL:
-                heap = np.concatenate([heap, np.empty_like(heap)])
-            elif status == kernel.PAUSED:
-                limits.check(int(counts[1]))
-            else:
-                break
+        found, expanded, generated = _in_slices(run_slice, s, h0, limits)
         path = None
-        if status == kernel.FOUND:
+        if found:
             jumps = [t]
             while jumps[-1] != s:  # bounded: parents lead back to the start
                 jumps.append(parent[jumps[-1]])
             path = _filled(jumps[::-1], grid.width)
-        return path, int(counts[1]), int(counts[2])
+        return path, expanded, generated
     finally:
         grid._give(parent)
+
+
+def _in_slices(run_slice, s, h0, limits):
+    """Run a compiled loop from start ``s`` in slices, polling the limits between.
+
+    ``run_slice(heap, counts, pause_at)`` advances the search (see
+    :func:`kernel.run`). Returns ``(found, expanded, generated)``.
+    """
+    heap = np.empty((_INITIAL_HEAP, 3))
+    heap[0] = (h0, h0, s)
+    counts = np.array([1, 0, 1], dtype=np.int64)  # heap size, expanded, generated
+    limits.check(0)
+    while True:
+        status = run_slice(heap, counts, min(counts[1] + _COMPILED_SLICE, limits.budget))
+        if status == kernel.HEAP_FULL:
+            heap = np.concatenate([heap, np.empty_like(heap)])
+        elif status == kernel.PAUSED:
+            limits.check(int(counts[1]))
+        else:
+            return status == kernel.FOUND, int(counts[1]), int(counts[2])
 
 
 def _filled(jumps, width):
@@ -796,14 +748,7 @@ def _traced(grid, policy, state, t):
 
 def _heuristic(kind, d_row, d_col):
     """Unweighted heuristic [cells] of an offset to the goal (eqs. 2-4)."""
-    y, x = abs(d_row), abs(d_col)
-    if kind == _EUCLIDEAN:
-        return math.sqrt(x * x + y * y)
-    if kind == _OCTILE:
-        return x + y + _ROOT2_MINUS_2 * min(x, y)
-    if kind == _MANHATTAN:
-        return float(x + y)
-    return 0.0
+    return kernel.heuristic_term(kind, 1.0, d_row, d_col)
 
 
 class _Limits:
