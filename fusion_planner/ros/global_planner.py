@@ -161,7 +161,8 @@ PARAMETER_SPECS = (
                   "'pose_with_covariance' (PoseWithCovarianceStamped on amcl_pose)",
                   read_only=True, choices=tuple(POSE_TOPICS)),
     ParameterSpec('algorithm', 'improved',
-                  "search algorithm: 'dijkstra', 'astar' or 'improved' (the paper's improved A*)",
+                  "search algorithm: 'dijkstra', 'astar' (with the 8-neighbourhood: jump points, "
+                  "optimal) or 'improved' (the paper's improved A*)",
                   choices=ALGORITHMS),
     ParameterSpec('neighbourhood', 8, 'search neighbourhood [cells]: 4, 8 or 16',
                   int_range(4, 16, 4)),
