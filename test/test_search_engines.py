@@ -238,3 +238,21 @@ def test_jump_points_need_the_fixed_8_neighbourhood():
         search.astar(4, jump_points=True)
     with pytest.raises(InvalidInput, match='jump points'):
         search.SearchPolicy(variable_neighbourhood=True, jump_points=True)
+
+
+def test_a_numba_that_fails_to_import_falls_back_to_python(monkeypatch):
+    """numba found but broken: the search still answers, then runs in Python."""
+    import sys
+    monkeypatch.setattr(kernel, 'AVAILABLE', True)
+    monkeypatch.setattr(kernel, '_compiled', False)
+    monkeypatch.setitem(sys.modules, 'numba', None)  # import numba raises ImportError
+    free = np.ones((30, 30), bool)
+    free[15, :-2] = False
+    grid = search.PaddedGrid(free)
+    grid.prepare(8)
+    assert kernel.AVAILABLE is False
+    found = search.grid_search(grid, (0, 0), (29, 0), search.astar(8))
+    expected = search.grid_search(grid, (0, 0), (29, 0), search.astar(8), engine='python')
+    _assert_same(found, expected)
+    jumped = search.grid_search(grid, (0, 0), (29, 0), search.astar(8, jump_points=True))
+    assert jumped.cost == pytest.approx(expected.cost, abs=1e-9)

@@ -428,12 +428,16 @@ def _compile():
     helpers are replaced first: numba binds the globals a function calls
     when it compiles that function.
     """
-    global _compiled, _less, _less_than_row, _copy_row, _set_row, _push, _pop, _stop
-    global _heuristic_term, _goal_sector, _run
+    global AVAILABLE, _compiled, _less, _less_than_row, _copy_row, _set_row, _push, _pop
+    global _stop, _heuristic_term, _goal_sector, _run
     global _jump_straight, _jump_diagonal, _natural_or_forced, _jump_run
     if _compiled or not AVAILABLE:
         return
-    import numba
+    try:
+        import numba
+    except ImportError:  # installed but broken (e.g. a mismatched llvmlite)
+        AVAILABLE = False  # this call runs as plain Python, later ones the Python loop
+        return
     _less = numba.njit(cache=True, inline='always')(_less)
     _less_than_row = numba.njit(cache=True, inline='always')(_less_than_row)
     _copy_row = numba.njit(cache=True, inline='always')(_copy_row)

@@ -426,7 +426,7 @@ def _warm_up(neighbourhood):
     """Load the compiled loop for a neighbourhood by one search on a 3 x 3 grid."""
     tiny = PaddedGrid(np.ones((3, 3), bool))
     for policy in (astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)):
-        grid_search(tiny, (0, 0), (2, 2), policy, engine='compiled')
+        grid_search(tiny, (0, 0), (2, 2), policy)
 
 
 def _shifted(values, offset, reach):
