@@ -26,22 +26,15 @@ that the caller polls its deadline and cancellation, and when the heap must
 grow.
 """
 
-import importlib.util
 import math
 
 import numpy as np
 
-
-def _numba_installed():
-    """Whether numba can be imported (without importing it: that takes 0.4 s)."""
-    try:
-        return importlib.util.find_spec('numba') is not None
-    except ValueError:  # a module set to None in sys.modules
-        return False
+from fusion_planner.core import distance_transform
 
 
 #: Whether the compiled loop can be used.
-AVAILABLE = _numba_installed()
+AVAILABLE = distance_transform.numba_installed()
 
 #: Status codes of :func:`run` (RUNNING: inside a slice only).
 FOUND, EXHAUSTED, PAUSED, HEAP_FULL, RUNNING = range(5)

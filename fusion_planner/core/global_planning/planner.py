@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from fusion_planner.core import distance_transform
 from fusion_planner.core.global_planning import metrics, refine, search
 from fusion_planner.core.errors import (
     GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
@@ -28,11 +29,13 @@ from fusion_planner.core.grid import GridMap
 
 ALGORITHMS = ('dijkstra', 'astar', 'improved')
 
-#: Maps of at most this many cells get their whole clearance map when
-#: prepared (a distance transform: about 20 ms for 512 x 512, 0.1 s for
-#: 1024 x 1024, 8 bytes per cell), so that each plan's metrics and
-#: refinement read clearances instead of computing them around the path.
-#: Larger maps keep the local computation (:meth:`GridMap.clearance_of_cells`).
+#: When prepared, a map gets its whole clearance map (8 bytes per cell), so
+#: that each plan's metrics and refinement read clearances instead of
+#: computing them around the path: every map when the compiled distance
+#: transform is available (:mod:`~fusion_planner.core.distance_transform`,
+#: 0.6 s and 128 MB for 4000 x 4000 cells), else maps of at most this many
+#: cells (scipy's transform: about 0.1 s for 1024 x 1024). Larger maps keep
+#: the local computation (:meth:`GridMap.clearance_of_cells`).
 WHOLE_CLEARANCE_CELLS = 1 << 20
 
 
@@ -200,14 +203,13 @@ class GlobalPlanner:
         traversable mask, the padded search grid, its move tables for the
         configured neighbourhood, and loads the compiled search loop
         (:meth:`~fusion_planner.core.global_planning.search.PaddedGrid.prepare`);
-        on a map of at most :data:`WHOLE_CLEARANCE_CELLS` cells, also the
-        whole clearance map.
+        and the whole clearance map (see :data:`WHOLE_CLEARANCE_CELLS`).
         Plans on an unchanged map and radius reuse them, so a caller that
         prepares when the map arrives keeps the plans' time to the search.
         Cheap when already prepared.
         """
         t0 = time.perf_counter()
-        if self.grid.occupied.size <= WHOLE_CLEARANCE_CELLS:
+        if distance_transform.AVAILABLE or self.grid.occupied.size <= WHOLE_CLEARANCE_CELLS:
             self.grid.clearance  # computed once and kept by the map
         self._search_grid().prepare(self.config.neighbourhood)
         return time.perf_counter() - t0
