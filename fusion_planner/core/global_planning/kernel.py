@@ -42,9 +42,11 @@ FOUND, EXHAUSTED, PAUSED, HEAP_FULL, RUNNING = range(5)
 #: Heuristic kinds (the codes of :mod:`search`).
 ZERO, MANHATTAN, EUCLIDEAN, OCTILE = range(4)
 
-#: Per-search cell state codes, as in :mod:`search`.
+#: Per-search cell state codes, as in :mod:`search`; STALE and GOAL are
+#: :func:`_close`'s answers besides a code.
 START_CODE = 127
 CLOSED = 128
+STALE, GOAL = -1, -2
 
 #: A slice stops for a heap that has fewer free slots than this: one
 #: expansion pushes at most 16 moves and one re-queued entry.
@@ -140,6 +142,19 @@ def _stop(size, expanded, pause_at, capacity):
     return RUNNING
 
 
+def _close(state, j, goal):
+    """Close popped node ``j`` and return its state code before closing, or
+    :data:`STALE` (already closed: a stale heap entry) or :data:`GOAL` (the
+    goal, left open)."""
+    code = state[j]
+    if code & CLOSED:
+        return STALE
+    if j == goal:
+        return GOAL
+    state[j] = code | CLOSED
+    return code
+
+
 def _heuristic_term(kind, weight, y, x):
     """``beta * w_n * h`` of an offset ``(y, x)`` to the goal [cells]."""
     if kind == EUCLIDEAN:
@@ -199,13 +214,12 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
         j = _pop(heap, size)
         size -= 1
         if j >= 0:
-            code = state[j]
-            if code & CLOSED:
+            code = _close(state, j, goal)
+            if code == STALE:
                 continue
-            if j == goal:
+            if code == GOAL:
                 status = FOUND
                 break
-            state[j] = code | CLOSED
             expanded += 1
             widened = not variable
         else:
@@ -332,13 +346,12 @@ def _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, co
             break
         j = _pop(heap, size)
         size -= 1
-        code = state[j]
-        if code & CLOSED:
+        code = _close(state, j, goal)
+        if code == STALE:
             continue
-        if j == goal:
+        if code == GOAL:
             status = FOUND
             break
-        state[j] = code | CLOSED
         expanded += 1
         row = j // width
         col = j - row * width
@@ -422,7 +435,7 @@ def _compile():
     when it compiles that function.
     """
     global AVAILABLE, _compiled, _less, _less_than_row, _copy_row, _set_row, _push, _pop
-    global _stop, _heuristic_term, _goal_sector, _run
+    global _stop, _close, _heuristic_term, _goal_sector, _run
     global _jump_straight, _jump_diagonal, _natural_or_forced, _jump_run
     if _compiled or not AVAILABLE:
         return
@@ -438,6 +451,7 @@ def _compile():
     _push = numba.njit(cache=True)(_push)
     _pop = numba.njit(cache=True)(_pop)
     _stop = numba.njit(cache=True, inline='always')(_stop)
+    _close = numba.njit(cache=True, inline='always')(_close)
     _heuristic_term = numba.njit(cache=True, inline='always')(_heuristic_term)
     _goal_sector = numba.njit(cache=True, inline='always')(_goal_sector)
     _run = numba.njit(cache=True, nogil=True)(_run)
