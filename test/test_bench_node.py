@@ -35,3 +35,16 @@ def test_far_goals_are_reachable_and_far():
     for goal in goals:
         assert labels[goal] == labels[start] != 0
         assert ((goal[0] - start[0]) ** 2 + (goal[1] - start[1]) ** 2) ** 0.5 >= 300
+
+
+def test_a_node_that_cannot_start_is_one_error_line(monkeypatch, capsys):
+    """A parameter the node refuses: it exits at start; the bench says so in one line, exit 1."""
+    import argparse
+    monkeypatch.setattr(node_latency, 'MAP_TIMEOUT_S', 30.0)
+    args = argparse.Namespace(seeds=[3], goals=1, algorithm='no-such-algorithm', side_m=40.0,
+                              min_distance=15.0, json=False)
+    status = node_latency.run(args)
+    err = capsys.readouterr().err
+    assert status == 1
+    assert err.startswith('error: floor 3: the node did not accept the map')
+    assert 'exited with status' in err and 'Traceback' not in err

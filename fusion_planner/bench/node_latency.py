@@ -30,6 +30,7 @@ import signal
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -75,8 +76,12 @@ def run(args):
         raise InvalidInput('--goals must be positive and --seeds not empty')
     records = []
     for seed in args.seeds:
-        records.append(measure_floor(seed, args.goals, args.algorithm, args.side_m,
-                                     args.min_distance))
+        try:
+            records.append(measure_floor(seed, args.goals, args.algorithm, args.side_m,
+                                         args.min_distance))
+        except NodeFailed as err:
+            print(f'error: floor {seed}: {err}', file=sys.stderr)
+            return EXIT_FAILED
     report = {'algorithm': args.algorithm, 'floors': records}
     if args.json:
         print(json.dumps(report))
@@ -107,7 +112,8 @@ def measure_floor(seed, goals, algorithm, side_m, min_distance_m=MIN_DISTANCE_M)
         t0 = time.perf_counter()
         client.publish_map()
         if not client.wait_for(lambda: client.map_accepted, MAP_TIMEOUT_S, node):
-            raise RuntimeError(f'the node did not accept the map within {MAP_TIMEOUT_S:g} s')
+            raise NodeFailed(f'the node did not accept the map within {MAP_TIMEOUT_S:g} s'
+                             + node.last_error())
         map_wait = time.perf_counter() - t0
         client.publish_start(start_xy)
         results = []
@@ -151,6 +157,10 @@ def pyastar2d_seconds(free, start, goal):
     return time.perf_counter() - t0
 
 
+class NodeFailed(Exception):
+    """The node died or did not answer in time."""
+
+
 class NodeProcess:
     """The global planner node in a subprocess (a context manager).
 
@@ -164,11 +174,12 @@ class NodeProcess:
         root = str(pathlib.Path(__file__).resolve().parents[2])
         env = dict(os.environ)
         env['PYTHONPATH'] = root + os.pathsep + env.get('PYTHONPATH', '')
+        self._log = tempfile.TemporaryFile(mode='w+')  # a pipe could fill and block the node
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'fusion_planner.ros.global_planner', '--ros-args',
              '-p', f'robot_radius:={ROBOT_RADIUS}', '-p', f'algorithm:={algorithm}',
              '-p', 'mark_obstacles:=false', '--log-level', 'warn'],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            env=env, stdout=subprocess.DEVNULL, stderr=self._log, text=True)
 
     def __enter__(self):
         return self
@@ -181,11 +192,19 @@ class NodeProcess:
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait()
+        self._log.close()
         return False
 
     def alive(self):
         """Whether the node still runs."""
         return self.process.poll() is None
+
+    def last_error(self):
+        """How the node ended and its last log line, as a clause (``''`` if nothing)."""
+        self._log.seek(0)
+        lines = [line for line in self._log.read().splitlines() if line.strip()]
+        status = '' if self.alive() else f'; the node exited with status {self.process.returncode}'
+        return status + (f'; its last log line: {lines[-1]}' if lines else '')
 
     def peak_rss_mb(self):
         """Peak resident set size [MB] of the node so far (``VmHWM``), or None."""
