@@ -146,7 +146,7 @@ class EpisodeResult:
         return self.time_s / self.optimal_time_s
 
     def summary(self):
-        """The JSON-ready figures plus identification.
+        """The JSON-ready figures of the run plus identification.
 
         Returns
         -------
