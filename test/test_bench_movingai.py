@@ -64,8 +64,8 @@ def test_tiny_folder_all_algorithms_exact(tmp_path, capsys):
     assert status == 0, err
     report = json.loads(out)
     by_algorithm = {s['algorithm']: s for s in report['summaries']}
-    assert set(by_algorithm) == {'astar', 'dijkstra', 'improved'}
-    for name in ('astar', 'dijkstra'):
+    assert set(by_algorithm) == {'astar', 'jps', 'dijkstra', 'improved'}
+    for name in ('astar', 'jps', 'dijkstra'):
         assert by_algorithm[name]['rows'] == by_algorithm[name]['exact'] == len(TINY_ROWS)
         assert by_algorithm[name]['ratio_max'] == pytest.approx(1.0)
     improved = by_algorithm['improved']

@@ -56,7 +56,7 @@ def quick_random(tmp_path_factory):
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
         status = main(['bench', 'peers', '--quick', '--suites', 'random', '--json',
-                       '--no-progress', '--planners', 'dijkstra', 'astar', 'improved',
+                       '--no-progress', '--planners', 'dijkstra', 'astar', 'jps', 'improved',
                        'improved_refined', 'pyastar2d', 'tcod', 'pathfinding', 'networkx'])
     return status, json.loads(out.getvalue())
 
@@ -162,3 +162,24 @@ def test_nav2_pairs_follow_the_protocol():
         assert math.dist(start, goal) * resolution > 3.0
         for cell in (start, goal):
             assert all(buffer <= v <= side - buffer for v in cell)
+
+
+def test_quick_building_run_has_our_planners_and_the_compiled_peers_only():
+    import contextlib
+    import io
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        status = main(['bench', 'peers', '--quick', '--suites', 'building', '--json',
+                       '--no-progress', '--planners', 'astar', 'improved', 'pyastar2d', 'tcod',
+                       'pathfinding'])
+    report = json.loads(out.getvalue())
+    assert status == 0
+    assert [s['suite'] for s in report['scenarios']] == ['building']
+    ran = {row['planner'] for row in report['rows']}
+    assert 'pathfinding' not in ran and {'astar', 'improved'} <= ran
+    for row in report['rows']:
+        assert row['pairs'] == row['found'] == row['valid'] == 1
+    rows = {row['planner']: row for row in report['rows']}
+    assert rows['astar']['optimal_exact'] == 1
+    targets = [v['target'] for v in report['targets']]
+    assert any('A*-8 <= 2x pyastar2d' in t for t in targets if 'pyastar2d' in ran)

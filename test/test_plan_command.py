@@ -17,7 +17,7 @@ from fusion_planner.core.map_files import load_map, save_map_server
 PAPER_YAML = str(REPO / 'config' / 'maps' / 'paper.yaml')
 
 JSON_KEYS = {'found', 'length_m', 'expanded', 'key_points', 'turning_deg',
-             'min_clearance_m', 'time_s', 'path', 'error'}
+             'min_clearance_m', 'time_s', 'prepare_s', 'path', 'error'}
 
 #: An asymmetric MovingAI map, top row first. File cell (col 0, row 0) is
 #: free, its mirror (col 0, row 3) is blocked, so reading rows the wrong
@@ -84,7 +84,7 @@ def test_json_has_every_field_with_its_type(capsys):
     doc = json.loads(out)  # exactly one JSON document
     assert set(doc) == JSON_KEYS
     assert doc['found'] is True and doc['error'] is None
-    for key in ('length_m', 'turning_deg', 'min_clearance_m', 'time_s'):
+    for key in ('length_m', 'turning_deg', 'min_clearance_m', 'time_s', 'prepare_s'):
         assert isinstance(doc[key], float) and math.isfinite(doc[key]), key
     for key in ('expanded', 'key_points'):
         assert isinstance(doc[key], int) and not isinstance(doc[key], bool), key

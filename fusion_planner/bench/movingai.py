@@ -43,12 +43,14 @@ from fusion_planner.core.global_planning.planner import PlannerConfig
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 #: Algorithms of this benchmark, in table order. ``astar`` is A* with the
-#: 8-neighbourhood and the octile heuristic.
-ALGORITHMS = ('astar', 'dijkstra', 'improved')
+#: 8-neighbourhood and the octile heuristic, expanding cell by cell;
+#: ``jps`` the same with jump-point pruning.
+ALGORITHMS = ('astar', 'jps', 'dijkstra', 'improved')
 #: The algorithms that must return exactly ``optimal_length``.
-OPTIMAL_ALGORITHMS = ('astar', 'dijkstra')
+OPTIMAL_ALGORITHMS = ('astar', 'jps', 'dijkstra')
 #: Labels of the algorithms in the table.
-LABELS = {'astar': 'A*-8', 'dijkstra': 'Dijkstra', 'improved': 'improved A*'}
+LABELS = {'astar': 'A*-8', 'jps': 'A*-8 jump points', 'dijkstra': 'Dijkstra',
+          'improved': 'improved A*'}
 #: Largest accepted gap to the file's ``optimal_length`` [cells]; the file
 #: rounds to 8 decimals, so 1e-4 leaves room for summation order only.
 OPTIMAL_TOLERANCE = 1e-4
@@ -281,6 +283,7 @@ def policies(algorithms, config=None):
     config = config or PlannerConfig()
     table = {
         'astar': search.astar(8, 'octile'),
+        'jps': search.astar(8, 'octile', jump_points=True),
         'dijkstra': search.dijkstra(8),
         'improved': replace(config, algorithm='improved', neighbourhood=8).policy(),
     }
