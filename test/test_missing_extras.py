@@ -61,6 +61,7 @@ CASES = [
     (cli('bench', 'peers', '--quick', '--planners', 'astar', '--plot', 'OUT/peers.png'), 'plot'),
     (cli('bench', 'local', '--quick'), 'ros'),
     (cli('bench', 'local', '--no-ros'), 'ros'),  # the demo run needs ROS 2
+    (cli('bench', 'node', '--goals', '1'), 'ros'),
     (cli('demo', '--plot', 'OUT/demo.png'), 'ros'),
     (cli('demo', '--processes', '--no-plot', '--no-gif', '--no-record', '--plot', 'OUT/d.png'),
      'ros'),

@@ -20,7 +20,8 @@ Notes
   reported as the wait for the map.
 - The node runs with its defaults but ``robot_radius`` (0.2 m), the
   ``algorithm`` asked for, and ``mark_obstacles`` off (no scans here).
-- Needs rclpy (a sourced ROS 2) and, for the ratio, pyastar2d.
+- Needs ROS 2 (the ``ros`` extra or a sourced install) and, for the ratio,
+  pyastar2d (the ``bench`` extra); both are checked before any work.
 """
 
 import json
@@ -36,6 +37,7 @@ import time
 import numpy as np
 
 from fusion_planner.bench.building_map import BuildingSpec, building_map, far_pairs
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
 
@@ -74,6 +76,8 @@ def run(args):
     """Run the benchmark; 0 when every goal got its Path, 1 otherwise."""
     if args.goals < 1 or not args.seeds:
         raise InvalidInput('--goals must be positive and --seeds not empty')
+    require('ros', 'bench node')
+    require('bench', 'bench node (its pyastar2d ratio)', modules=('pyastar2d',))
     records = []
     for seed in args.seeds:
         try:
@@ -99,7 +103,7 @@ def measure_floor(seed, goals, algorithm, side_m, min_distance_m=MIN_DISTANCE_M)
     dict
         ``seed``, ``map_wait_s`` (publishing the map until the node reports
         it accepted and prepared), ``goals`` (per goal ``distance_m``,
-        ``latency_s`` or None, ``pyastar2d_s`` or None, ``path_length_m``),
+        ``latency_s`` or None, ``pyastar2d_s``, ``path_length_m``),
         ``peak_rss_mb`` of the node or None.
     """
     spec = BuildingSpec(side_m=side_m)
@@ -146,11 +150,9 @@ def far_goals(free, count, min_distance_cells, seed):
 
 
 def pyastar2d_seconds(free, start, goal):
-    """pyastar2d's search time [s] on the inflated grid, or None without it."""
-    try:
-        import pyastar2d
-    except ImportError:
-        return None
+    """pyastar2d's search time [s] on the inflated grid (the bench extra, checked by run)."""
+    import pyastar2d
+
     weights = np.where(free, 1.0, np.inf).astype(np.float32)
     t0 = time.perf_counter()
     pyastar2d.astar_path(weights, start, goal, allow_diagonal=True)
