@@ -22,6 +22,10 @@ Topics (relative names, so a namespace or a remap applies):
 - ``scan`` (sensor_msgs/LaserScan, best effort, frame =
   ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
   points, placed in the map with the odometry pose of the scan's stamp.
+- ``map`` (nav_msgs/OccupancyGrid, latched or volatile publishers) in: the
+  known map the fusion controller replans on, with the obstacles it has
+  scanned, when it is stuck (:class:`~fusion_planner.core.local_planning.replanning.GridReplanner`,
+  as in the simulation); without a map it recovers without replanning.
 - ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in:
   tracked moving obstacles; velocities are estimated from successive
   positions (:class:`~fusion_planner.ros.conversions.ObstacleTracker`).
@@ -34,6 +38,11 @@ Topics (relative names, so a namespace or a remap applies):
   nothing, so it does not fight a teleop or keep a twist_mux input alive;
   ``publish_zero_when_idle`` keeps a zero command at ``control_rate``.
 - ``local_plan`` (nav_msgs/Path) out: the controller's short field rollout.
+- ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) out, once per
+  plan whose run ended: ``reached``, ``no_path`` (replanning proved the goal
+  unreachable) or ``controller_failed``, with the plan's stamp
+  (:mod:`~fusion_planner.ros.goal_outcome`); also logged once and on
+  diagnostics as ``last_outcome``.
 - ``/diagnostics`` out: controller status, arrival, failure with its reason,
   stuck events, stale inputs, step timing.
 
@@ -58,18 +67,24 @@ from dataclasses import field as dataclass_field
 from dataclasses import fields, make_dataclass
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
-from nav_msgs.msg import Odometry, Path
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
-from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.global_planning.planner import PlannerConfig
+from fusion_planner.core.grid import DEFAULT_MAX_CELLS
+from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
-from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.goal_outcome import (
+    CONTROLLER_OUTCOME_TOPIC, OUTCOME_OF_STATUS, controller_outcome_msg)
+from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
@@ -123,6 +138,8 @@ NODE_PARAMETERS = (
      'long; 0 disables [s]', float_range(0.0, 600.0), False, ()),
     ('obstacle_timeout', conv.DEFAULT_OBSTACLE_TIMEOUT_S,
      'forget a tracked obstacle not seen for this long [s]', float_range(0.01, 60.0), True, ()),
+    ('max_map_cells', DEFAULT_MAX_CELLS, 'maps with more cells are refused [cells]',
+     int_range(1, 400_000_000), True, ()),
     ('diagnostics_period', 1.0,
      'period of the diagnostics heartbeat on the node clock; 0: events only [s]',
      float_range(0.0, 60.0), True, ()),
@@ -357,9 +374,13 @@ class LocalPlannerNode(Node):
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
-        self._controller = follow.make_controller(params.controller, params.follower_params())
+        self._replanner = None     # GridReplanner on the latest map
+        self._controller = follow.make_controller(params.controller, params.follower_params(),
+                                                  replan=self._replan)
         self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
         self._plan = None          # (N, 2) path being followed [m]
+        self._plan_stamp_ns = 0    # header stamp of that plan [ns]
+        self._outcome_sent = False  # the run of that plan ended and was reported
         self._odom = None          # latest Odometry as (stamp [s], pose (3,), velocity (2,))
         self._odom_received = None  # node-clock time it arrived [s]
         self._odom_history = collections.deque(maxlen=ODOM_HISTORY)  # (stamp, pose, velocity)
@@ -389,6 +410,10 @@ class LocalPlannerNode(Node):
                                  ANY_PUBLISHER_QOS)
         self.create_subscription(MarkerArray, 'obstacles', guard('obstacles', self._on_obstacles),
                                  RELIABLE_QOS)
+        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
+                                          ReliabilityPolicy.RELIABLE)
+        self._outcome_pub = self.create_publisher(DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC,
+                                                  RELIABLE_QOS)
         self._timer = self.create_timer(1.0 / params.control_rate,
                                         guard('control', self._on_timer, on_error=self._on_fault))
         self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
@@ -411,10 +436,27 @@ class LocalPlannerNode(Node):
             min_turn = self._params.current.key_node_min_turn
             self._controller.set_path(path, key_nodes_of(path, min_turn))
             self._plan = path
+            self._plan_stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
+            self._outcome_sent = False
             self._plan_orphaned_since = None
             self._status = None
             self.get_logger().info(
                 f'new plan of {len(path)} points to ({path[-1, 0]:.2f}, {path[-1, 1]:.2f})')
+
+    def _on_map(self, msg):
+        """Replan on this map from now on (unknown cells count as obstacles)."""
+        params = self._params.current
+        grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
+                                               max_cells=params.max_map_cells)
+        config = PlannerConfig(robot_radius=params.robot_radius)
+        with self._lock:
+            self._replanner = GridReplanner(grid, config)
+
+    def _replan(self, start, goal, obstacle_points):
+        """The controller's replanner: the map plus the scanned obstacles (see GridReplanner)."""
+        if self._replanner is None:
+            raise NoValidPathCouldBeFound('no map received: cannot replan')
+        return self._replanner(start, goal, obstacle_points)
 
     def _on_odometry(self, msg):
         pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
@@ -449,7 +491,8 @@ class LocalPlannerNode(Node):
         """Apply an accepted run-time parameter change."""
         with self._lock:
             if new.controller != old.controller or new.key_node_min_turn != old.key_node_min_turn:
-                self._controller = follow.make_controller(new.controller, new.follower_params())
+                self._controller = follow.make_controller(new.controller, new.follower_params(),
+                                                          replan=self._replan)
                 if self._plan is not None:
                     self._controller.set_path(self._plan,
                                               key_nodes_of(self._plan, new.key_node_min_turn))
@@ -595,20 +638,31 @@ class LocalPlannerNode(Node):
         values = dict(status=status, arrived=status == 'arrived', stuck_events=stuck,
                       controller=self._params.current.controller,
                       distance_to_goal_m=distance, step_ms=step_ms, step_ms_max=self._step_ms_max)
+        if status in OUTCOME_OF_STATUS:
+            self._publish_outcome(OUTCOME_OF_STATUS[status], command.reason)
         if status == 'arrived':
             self.get_logger().info(f'arrived at ({pose[0]:.2f}, {pose[1]:.2f}), '
                                    f'{distance:.3f} m from the goal')
             self._diagnostics.succeeded('arrived at the goal', last_error='', **values)
-            self._level, self._message = OK, 'arrived at the goal'
-        elif status == 'failed':
-            self.get_logger().error(f'local planner failed: {command.reason}')
-            self._update(ERROR, f'failed: {command.reason}', last_outcome='failed',
+            self._update(OK, 'arrived at the goal', last_outcome='reached')
+        elif status in ('failed', 'no_path'):
+            outcome = OUTCOME_OF_STATUS[status]
+            self.get_logger().error(f'local planner ended: {outcome}: {command.reason}')
+            self._update(ERROR, f'{outcome}: {command.reason}', last_outcome=outcome,
                          last_error=command.reason, **values)
         elif status == 'slow_stale_scan':
             self._update(WARN, 'scan is stale: slowing down', **values)
         else:
             self._update(OK if status == 'moving' else WARN, status, **values)
         self._status = status
+
+    def _publish_outcome(self, outcome, reason):
+        """Tell the global planner, once per plan, how its run ended."""
+        if self._outcome_sent:
+            return
+        self._outcome_sent = True
+        self._outcome_pub.publish(controller_outcome_msg(
+            outcome, self._plan_stamp_ns, reason, self.get_fully_qualified_name()))
 
     def _report(self, status, message, level):
         """Diagnostics (and a log line for a stop) once per status change."""
