@@ -91,8 +91,9 @@ CHUNK = 500
 SHOWN_CHARS = 1500
 #: Slack on velocity limits [m/s or rad/s].
 LIMIT_EPS = 1e-9
-#: Services every rclpy node has (parameters, type descriptions): not ours.
-RCLPY_SERVICE_PACKAGES = ('rcl_interfaces', 'type_description_interfaces')
+#: Services every rclpy (lifecycle) node has (parameters, type descriptions, lifecycle
+#: transitions, tested in test_lifecycle.py): not ours.
+RCLPY_SERVICE_PACKAGES = ('rcl_interfaces', 'type_description_interfaces', 'lifecycle_msgs')
 
 
 # -- strategies: numbers, headers, poses ---------------------------------------------

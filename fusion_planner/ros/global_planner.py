@@ -65,7 +65,6 @@ from nav_msgs.srv import GetPlan
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
-from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from scipy import ndimage
 from scipy.spatial import cKDTree
@@ -81,6 +80,7 @@ from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
 from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
 from fusion_planner.ros.goal_outcome import (
     CANCEL_SERVICE, CONTROLLER_OUTCOME_TOPIC, GOAL_OUTCOME_TOPIC, controller_outcome_from_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
@@ -136,6 +136,7 @@ class GlobalPlannerParams:
     obstacle_clear_range: float = 4.0
     obstacle_update_period: float = 0.2
     diagnostics_period: float = 1.0
+    autostart: bool = True
 
     def __post_init__(self):
         self.planner_config()  # the core validates algorithm, weights, radii
@@ -213,6 +214,7 @@ PARAMETER_SPECS = (
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),
+    ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
 )
 
 
@@ -272,8 +274,12 @@ def nearest_free_goal(grid, traversable, goal, tolerance, components=None, start
     return grid.world_of(np.array([rows.start + r, cols.start + c]))
 
 
-class GlobalPlannerNode(Node):
+class GlobalPlannerNode(ManagedNode):
     """The global planner node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    inactive, it refuses goals and plans; deactivating it cancels the
+    current goal.
 
     Parameters
     ----------
@@ -294,6 +300,12 @@ class GlobalPlannerNode(Node):
         params = self._params.current
         self._frame_id = params.frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def configure(self):
+        """Fresh state; the publishers, subscriptions and services."""
+        params = self._params.current
         # Map state: the accepted message (kept to rebuild on a parameter
         # change), the options it was converted with, its planner.
         self._map_msg = None
@@ -312,8 +324,9 @@ class GlobalPlannerNode(Node):
         self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
         guard = self._diagnostics.guard
-        self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, 'plan_markers', RELIABLE_QOS)
+        self._plan_pub = self.create_lifecycle_publisher(Path, 'plan', LATCHED_QOS)
+        self._markers_pub = self.create_lifecycle_publisher(MarkerArray, 'plan_markers',
+                                                            RELIABLE_QOS)
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
@@ -330,13 +343,20 @@ class GlobalPlannerNode(Node):
                                      ANY_PUBLISHER_QOS)
         self.create_service(GetPlan, 'get_plan',
                             guard('get_plan', self._on_get_plan, on_error=self._empty_response))
-        self._outcome_pub = self.create_publisher(String, GOAL_OUTCOME_TOPIC, RELIABLE_QOS)
+        self._outcome_pub = self.create_lifecycle_publisher(String, GOAL_OUTCOME_TOPIC,
+                                                            RELIABLE_QOS)
         self.create_subscription(DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC,
                                  guard('controller_outcome', self._on_controller_outcome),
                                  RELIABLE_QOS)
         self.create_service(Trigger, CANCEL_SERVICE,
                             guard('cancel_goal', self._on_cancel, on_error=self._cancel_refused))
         self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')
+
+    def deactivate(self):
+        """The current goal ends ``cancelled`` while the publishers still publish."""
+        if self._goal is not None:
+            self._end_goal('cancelled', 'the node was deactivated')
+        self._diagnostics.update(WARN, 'inactive')
 
     # -- callbacks ------------------------------------------------------------
 
@@ -359,6 +379,10 @@ class GlobalPlannerNode(Node):
     def _on_goal(self, msg):
         """Plan to a new goal; one still active ends ``preempted``."""
         goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        if not self.active:
+            self._diagnostics.log.warning('goal_pose/inactive',
+                                          'goal_pose ignored: the node is inactive')
+            return
         if self._goal is not None:
             self._end_goal('preempted', 'a newer goal arrived', stop=False)
         self._goal = goal
@@ -450,6 +474,10 @@ class GlobalPlannerNode(Node):
     def _on_get_plan(self, request, response):
         """Serve nav_msgs/srv/GetPlan; the published plan is left alone."""
         response.plan = self._empty_path()
+        if not self.active:
+            self._diagnostics.log.warning('get_plan/inactive',
+                                          'get_plan answered empty: the node is inactive')
+            return response
         try:
             start = conv.pose_stamped_to_xy_yaw(request.start, self._frame_id, 'start')
             goal = conv.pose_stamped_to_xy_yaw(request.goal, self._frame_id, 'goal')

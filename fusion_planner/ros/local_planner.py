@@ -70,7 +70,6 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
-from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
@@ -82,6 +81,7 @@ from fusion_planner.core.grid import DEFAULT_MAX_CELLS
 from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
 from fusion_planner.ros.goal_outcome import (
     CONTROLLER_OUTCOME_TOPIC, OUTCOME_OF_STATUS, controller_outcome_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
@@ -143,6 +143,7 @@ NODE_PARAMETERS = (
     ('diagnostics_period', 1.0,
      'period of the diagnostics heartbeat on the node clock; 0: events only [s]',
      float_range(0.0, 60.0), True, ()),
+    ('autostart', True, AUTOSTART_DESCRIPTION, None, True, ()),
 )
 
 #: Description and range of each :class:`~fusion_planner.core.local_planning.follow.FollowerParams`
@@ -343,8 +344,12 @@ def _corner(pts, first, last):
     return corner
 
 
-class LocalPlannerNode(Node):
+class LocalPlannerNode(ManagedNode):
     """The local planner node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    it commands only while active; deactivating it sends one zero command
+    and then nothing.
 
     Parameters
     ----------
@@ -374,6 +379,18 @@ class LocalPlannerNode(Node):
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
+        if params.use_stamped_twist:
+            self.get_logger().warning('use_stamped_twist is deprecated: '
+                                      'set enable_stamped_cmd_vel instead')
+        self._timer = None
+        self._reset_state()
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def _reset_state(self):
+        """Forget every input and the controller's state."""
+        params = self._params.current
         self._replanner = None     # GridReplanner on the latest map
         self._controller = follow.make_controller(params.controller, params.follower_params(),
                                                   replan=self._replan)
@@ -393,15 +410,16 @@ class LocalPlannerNode(Node):
         self._step_ms_max = 0.0
         self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
         self._idle_stop_sent = False  # the one zero command of an idle spell went out
-        self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
-        if params.use_stamped_twist:
-            self.get_logger().warning('use_stamped_twist is deprecated: '
-                                      'set enable_stamped_cmd_vel instead')
 
+    def configure(self):
+        """Fresh state; the publishers, subscriptions and the control timer."""
+        with self._lock:
+            self._reset_state()
+        params = self._params.current
         guard = self._diagnostics.guard
         twist_type = TwistStamped if self._stamped else Twist
-        self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
-        self._local_plan_pub = self.create_publisher(Path, 'local_plan', RELIABLE_QOS)
+        self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
+        self._local_plan_pub = self.create_lifecycle_publisher(Path, 'local_plan', RELIABLE_QOS)
         self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
                                            ReliabilityPolicy.RELIABLE)
         self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
@@ -412,13 +430,23 @@ class LocalPlannerNode(Node):
                                  RELIABLE_QOS)
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
-        self._outcome_pub = self.create_publisher(DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC,
-                                                  RELIABLE_QOS)
+        self._outcome_pub = self.create_lifecycle_publisher(
+            DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC, RELIABLE_QOS)
         self._timer = self.create_timer(1.0 / params.control_rate,
                                         guard('control', self._on_timer, on_error=self._on_fault))
         self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
                                  stuck_events=0, controller=params.controller)
 
+    def deactivate(self):
+        """Stop the robot with one zero command before the publishers go quiet."""
+        with self._lock:
+            self._publish_command(0.0, 0.0)
+            self._idle_stop_sent = True
+        self._update(WARN, 'inactive', status='inactive')
+
+    def cleanup(self):
+        """The timer went with the other entities."""
+        self._timer = None
     # -- inputs ---------------------------------------------------------------
 
     def _on_plan(self, msg):
@@ -499,7 +527,7 @@ class LocalPlannerNode(Node):
                 self._status = None
             else:
                 self._controller.params = new.follower_params()
-            if new.control_rate != old.control_rate:
+            if new.control_rate != old.control_rate and self._timer is not None:
                 self.destroy_timer(self._timer)
                 self._timer = self.create_timer(
                     1.0 / new.control_rate,
@@ -513,6 +541,8 @@ class LocalPlannerNode(Node):
 
     def _on_timer(self):
         """One control step: check inputs, run the controller, publish."""
+        if not self.active:
+            return
         started = time.perf_counter()
         with self._lock:
             now = self._now_s()
