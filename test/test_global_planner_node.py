@@ -111,7 +111,9 @@ class Harness:
         self.ctx = ctx
         self.planner = GlobalPlannerNode(
             context=ctx, namespace=self.ns,
-            parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS), *overrides])
+            # map-frame odometry as the pose source unless a test picks amcl_pose
+            parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS),
+                                 Parameter('pose_topic_type', value='odometry'), *overrides])
         self.tester = Node('tester', context=ctx, namespace=self.ns)
         self.plans, self.markers, self.statuses = [], [], []
         t = self.tester

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from geometry_msgs.msg import Twist, TwistStamped  # noqa: E402
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped  # noqa: E402
 from nav_msgs.msg import Odometry, Path  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -56,6 +56,8 @@ class FakeRobot:
     """A node standing in for the robot and the global planner, plus the local planner."""
 
     def __init__(self, context, stamped=False, **overrides):
+        overrides.setdefault('odom_frame_id', 'map')  # odometry in the map frame, no amcl_pose
+        self.odom_frame = overrides['odom_frame_id']
         self.node = Node('fake_robot', context=context)
         self.planner = lp.LocalPlannerNode(
             context=context,
@@ -65,7 +67,7 @@ class FakeRobot:
         self.odom_on = True
         self.scan_on = True
         self.last_odom_wall = None
-        self.odom_stamps = set()  # stamps of the odometry sent [s]
+        self.odom_stamps = set()  # stamps of the odometry sent [ns]
         self.odom_pub = self.node.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
         self.scan_pub = self.node.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
         self.plan_pub = self.node.create_publisher(Path, 'plan', LATCHED_QOS)
@@ -97,11 +99,11 @@ class FakeRobot:
         stamp = self.node.get_clock().now().to_msg()
         if self.odom_on:
             odom = Odometry()
-            odom.header.frame_id = 'map'
+            odom.header.frame_id = self.odom_frame
             odom.header.stamp = stamp
             odom.pose.pose.orientation.w = 1.0
             self.odom_pub.publish(odom)
-            self.odom_stamps.add(conv.stamp_to_seconds(stamp))
+            self.odom_stamps.add(conv.stamp_to_nanoseconds(stamp))
             self.last_odom_wall = time.monotonic()
         if self.scan_on:
             scan = LaserScan()
@@ -175,6 +177,32 @@ def test_a_run_that_ends_is_reported_once_with_its_plan_stamp(robot):
     values = {kv.key: kv.value for kv in robot.outcomes[0].values}
     assert robot.outcomes[0].message == 'reached' and int(values['plan_stamp_ns']) == stamp
     assert robot.statuses[-1]['last_outcome'] == 'reached'
+
+
+@pytest.mark.parametrize('robot', [{'odom_frame_id': 'odom'}], indirect=True)
+def test_the_plan_is_brought_into_the_odom_frame_with_the_localization_pose(robot):
+    # The robot stands at the odom origin facing +x; the localizer puts it at
+    # (1, 2) facing +y in the map. A plan going +y in the map is straight ahead.
+    robot.publish_plan(((1.0, 2.0), (1.0, 6.0)))
+    robot.wait(1.0)
+    assert not moving(robot.commands_since(0.0)), 'no localization yet: standing still'
+    assert robot.statuses[-1]['status'] == 'no_localization'
+    amcl_pub = robot.node.create_publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED_QOS)
+    amcl = PoseWithCovarianceStamped()
+    amcl.header.frame_id = 'map'
+    amcl.header.stamp = robot.node.get_clock().now().to_msg()
+    amcl.pose.pose.position.x, amcl.pose.pose.position.y = 1.0, 2.0
+    amcl.pose.pose.orientation = conv.quaternion_of_yaw(math.pi / 2)
+    amcl.pose.covariance[0] = math.nan  # a localizer that lost track: refused
+    amcl_pub.publish(amcl)
+    robot.wait(1.0)
+    assert not moving(robot.commands_since(0.0))
+    amcl.pose.covariance[0] = 0.01
+    amcl_pub.publish(amcl)
+    t0 = time.monotonic()
+    assert robot.wait_until(lambda: len(moving(robot.commands_since(t0))) >= 10, 5.0)
+    ahead = moving(robot.commands_since(t0))[-1]
+    assert ahead[1] > 0.0 and abs(ahead[2]) < 0.1, ahead  # straight ahead, no turn
 
 
 @pytest.mark.parametrize('robot', [{'publish_zero_when_idle': True}], indirect=True)
@@ -263,7 +291,7 @@ def test_twist_stamped_by_parameter_carries_the_odometry_stamp(context, paramete
         msg = fake.commands_since(0.0)[-1][3]
         assert isinstance(msg, TwistStamped)
         assert msg.header.frame_id == 'base_link'
-        assert conv.stamp_to_seconds(msg.header.stamp) in fake.odom_stamps
+        assert conv.stamp_to_nanoseconds(msg.header.stamp) in fake.odom_stamps
     finally:
         fake.close()
 
