@@ -499,6 +499,7 @@ def test_params_yaml_lists_exactly_the_declared_parameters(context):
     sections = [key for key in doc if key.split('/')[-1] == 'global_planner']
     assert len(sections) == 1, 'params.yaml needs exactly one global_planner section'
     listed = doc[sections[0]]['ros__parameters']
+    assert listed.pop('use_sim_time') is True  # the bundled setup runs on the simulator's clock
     declared = {spec.name for spec in PARAMETER_SPECS}
     assert set(listed) == declared
     node = GlobalPlannerNode(context=context,

@@ -342,6 +342,7 @@ def test_every_follower_and_field_coefficient_is_a_described_parameter_in_params
             assert len(descriptor.floating_point_range) == 1, spec.name
     doc = yaml.safe_load((REPO / 'config' / 'params.yaml').read_text())
     section = doc['/**/local_planner']['ros__parameters']
+    assert section.pop('use_sim_time') is True  # the bundled setup runs on the simulator's clock
     assert set(section) == declared
     stale = {s.name: (section[s.name], s.default) for s in lp.PARAMETER_SPECS
              if section[s.name] != s.default}
