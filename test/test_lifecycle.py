@@ -107,7 +107,7 @@ class Manager:
 
 
 def test_local_planner_lifecycle_over_dds_with_a_repeated_transition(context):
-    proc = start_node('local_planner', '-p', 'autostart:=false')
+    proc = start_node('local_planner', '-p', 'autostart:=false', '-p', 'odom_frame_id:=map')
     manager = Manager(context, 'local_planner')
     try:
         assert manager.state() == State.PRIMARY_STATE_UNCONFIGURED

@@ -10,13 +10,19 @@ and, from each localization pose (``map`` -> ``base_link``, e.g.
 odometry *at the localization's stamp*, the way AMCL and robot_localization
 publish it on TF. Odometry drifts but is smooth; the correction absorbs the
 drift and moves in small steps at the localization rate.
+
+On a full ROS install the same transforms can come from TF instead
+(:class:`TfSource`, ``use_tf``).
 """
 
 import collections
 import math
 
 import numpy as np
+from rclpy.time import Time
 
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.ros.conversions import yaw_of_quaternion
 from fusion_planner.ros.timed_pose import pose_at
 
 #: Odometry messages remembered to find the pose at a stamp [1].
@@ -117,3 +123,55 @@ class Localization:
         if self.map_from_odom is None or not self.odometry:
             return None
         return compose(self.map_from_odom, self.odom_pose_at(t))
+
+
+class TfSource:
+    """Planar transforms from a tf2 buffer (``tf2_ros.Buffer`` or anything with its interface).
+
+    Parameters
+    ----------
+    buffer : object
+        With ``can_transform(target, source, time)`` and
+        ``lookup_transform(target, source, time)`` returning a
+        ``geometry_msgs/TransformStamped``, as ``tf2_ros.Buffer`` has them.
+    listener : object, optional
+        The ``tf2_ros.TransformListener`` filling the buffer (kept alive here).
+    """
+
+    def __init__(self, buffer, listener=None):
+        self.buffer = buffer
+        self.listener = listener
+
+    def planar(self, target, source):
+        """The latest ``source`` -> ``target`` transform as ``(x, y, yaw)``, or None if unknown.
+
+        Raises
+        ------
+        InvalidInput
+            If the transform holds a NaN or a bad quaternion.
+        """
+        latest = Time()
+        if not self.buffer.can_transform(target, source, latest):
+            return None
+        transform = self.buffer.lookup_transform(target, source, latest).transform
+        what = f'transform {source} -> {target}'
+        x, y = transform.translation.x, transform.translation.y
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise InvalidInput(f'{what} has a NaN or infinite translation')
+        return np.array([x, y, yaw_of_quaternion(transform.rotation, what)])
+
+
+def make_tf_source(node):
+    """A :class:`TfSource` on a ``tf2_ros.Buffer`` filled by a listener on ``node``.
+
+    Raises
+    ------
+    InvalidInput
+        If tf2_ros is not importable (the Python wheels have no tf2).
+    """
+    try:
+        import tf2_ros
+    except ImportError:
+        raise InvalidInput('use_tf needs tf2_ros, which is not installed here') from None
+    buffer = tf2_ros.Buffer()
+    return TfSource(buffer, tf2_ros.TransformListener(buffer, node))

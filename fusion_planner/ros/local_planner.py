@@ -123,6 +123,8 @@ NODE_PARAMETERS = (
     ('odom_frame_id', 'odom', 'frame of the odometry, in which the robot is controlled; equal '
      'to frame_id: odometry already in the map frame, no amcl_pose needed', None, True, ()),
     ('laser_frame_id', 'base_link', 'frame of the scan', None, True, ()),
+    ('use_tf', False, 'take map -> odom and the laser pose from TF (needs tf2_ros, a full ROS '
+     'install) instead of amcl_pose and the laser_* parameters', None, True, ()),
     ('laser_x', 0.0, 'laser position ahead of the robot centre, robot frame [m]',
      float_range(-10.0, 10.0), True, ()),
     ('laser_y', 0.0, 'laser position left of the robot centre, robot frame [m]',
@@ -393,8 +395,10 @@ class LocalPlannerNode(ManagedNode):
     thread.
     """
 
-    def __init__(self, node_name=NODE_NAME, **kwargs):
+    def __init__(self, node_name=NODE_NAME, tf_buffer=None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self._tf_buffer = tf_buffer  # with use_tf: this buffer instead of a tf2_ros one
+        self._tf = None
         self._lock = threading.RLock()
         self._params = ParameterHandler(self, LocalPlannerParams, PARAMETER_SPECS,
                                         on_change=self._on_parameters_changed)
@@ -443,6 +447,9 @@ class LocalPlannerNode(ManagedNode):
         with self._lock:
             self._reset_state()
         params = self._params.current
+        if params.use_tf:
+            self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
+                else frames.make_tf_source(self)
         guard = self._diagnostics.guard
         twist_type = TwistStamped if self._stamped else Twist
         self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
@@ -457,7 +464,7 @@ class LocalPlannerNode(ManagedNode):
                                  RELIABLE_QOS)
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
-        if not self._localization.same_frame:
+        if not self._localization.same_frame and self._tf is None:
             self._pose_sub = LatchedOrVolatile(
                 self, PoseWithCovarianceStamped, 'amcl_pose',
                 guard('amcl_pose', self._on_localization), ReliabilityPolicy.BEST_EFFORT)
@@ -476,8 +483,10 @@ class LocalPlannerNode(ManagedNode):
         self._update(WARN, 'inactive', status='inactive')
 
     def cleanup(self):
-        """The timer went with the other entities."""
+        """The timer went with the other entities; the TF listener goes too."""
         self._timer = None
+        self._tf = None
+
     # -- inputs ---------------------------------------------------------------
 
     def _on_plan(self, msg):
@@ -561,6 +570,13 @@ class LocalPlannerNode(ManagedNode):
         self._controller.set_path(
             self._plan, key_nodes_of(self._plan, self._params.current.key_node_min_turn))
 
+    def _correction_from_tf(self, params):
+        """With ``use_tf``: the latest map -> odom from TF instead of amcl_pose."""
+        correction = self._tf.planar(self._frame_id, params.odom_frame_id)
+        if correction is not None:
+            self._localization.map_from_odom = correction
+            self._bring_plan_over()
+
     def _to_plan_frame(self):
         """The transform from the odom frame now to the plan's frame (identity without drift).
 
@@ -581,8 +597,15 @@ class LocalPlannerNode(ManagedNode):
                 pose = self._localization.odom_pose_at(stamp)
             else:  # an unstamped scan: take it as current
                 pose = self._odom[1]
-            laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
-            points = conv.scan_to_points(msg, tuple(laser), params.laser_frame_id, 'scan')
+            frame, mount = params.laser_frame_id, (params.laser_x, params.laser_y, params.laser_yaw)
+            if self._tf is not None:
+                frame = msg.header.frame_id
+                mount = self._tf.planar(params.robot_frame_id, frame)
+                if mount is None:
+                    raise InvalidInput(f'scan is in frame {frame!r}, which TF does not connect '
+                                       f'to {params.robot_frame_id!r}')
+            laser = frames.compose(pose, mount)
+            points = conv.scan_to_points(msg, tuple(laser), frame, 'scan')
             self._scan = (points, self._now_s())
 
     def _on_obstacles(self, msg):
@@ -628,6 +651,8 @@ class LocalPlannerNode(ManagedNode):
             if self._last_tick is not None and now < self._last_tick - CLOCK_JUMP_TOLERANCE_S:
                 self._on_clock_reset(now)
             self._last_tick = now
+            if self._tf is not None:
+                self._correction_from_tf(params)
             stop_reason = self._stop_reason(now, params)
             if stop_reason is not None:
                 status, message = stop_reason
