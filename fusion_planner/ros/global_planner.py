@@ -25,7 +25,8 @@ Topics (relative names, so a namespace or a remap applies):
 - ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
   expanded cells when ``publish_expanded`` is set.
 - ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
-  mounted at ``laser_x``, ``laser_y``, ``laser_yaw``) in, with
+  mounted at ``laser_x``, ``laser_y``, ``laser_yaw``; with ``use_tf`` its
+  frame and the robot pose come from TF) in, with
   ``mark_obstacles``: obstacles the map does not show are learnt from the
   returns (marked once seen for ``obstacle_persistence``, cleared when a
   beam passes through them again; :class:`~fusion_planner.core.global_planning.obstacle_layer.ObstacleLayer`),
@@ -114,6 +115,8 @@ POSE_HISTORY = 50
 POSE_EXTRAPOLATION_S = 0.5
 #: A node-clock step backwards larger than this [s] is a clock reset.
 CLOCK_JUMP_TOLERANCE_S = 1e-3
+#: Period of the robot pose lookup in TF with ``use_tf`` [s].
+TF_POSE_PERIOD_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -139,6 +142,8 @@ class GlobalPlannerParams:
     publish_expanded: bool = False
     mark_obstacles: bool = True
     laser_frame_id: str = 'base_link'
+    use_tf: bool = False
+    robot_frame_id: str = 'base_link'
     laser_x: float = 0.0
     laser_y: float = 0.0
     laser_yaw: float = 0.0
@@ -214,6 +219,12 @@ PARAMETER_SPECS = (
                   'learn obstacles the map does not show from scan and plan around them',
                   read_only=True),
     ParameterSpec('laser_frame_id', 'base_link', 'frame of the scan', read_only=True),
+    ParameterSpec('use_tf', False,
+                  'take the robot pose (map -> robot_frame_id) and the laser pose from TF (needs '
+                  'tf2_ros, a full ROS install) instead of amcl_pose or odom and the laser_* '
+                  'parameters', read_only=True),
+    ParameterSpec('robot_frame_id', 'base_link', 'robot frame, looked up in TF with use_tf',
+                  read_only=True),
     ParameterSpec('laser_x', 0.0, 'laser position ahead of the robot centre, robot frame [m]',
                   float_range(-10.0, 10.0), read_only=True),
     ParameterSpec('laser_y', 0.0, 'laser position left of the robot centre, robot frame [m]',
@@ -313,8 +324,10 @@ class GlobalPlannerNode(ManagedNode):
         If the start-up parameters are out of range or inconsistent.
     """
 
-    def __init__(self, node_name=NODE_NAME, **kwargs):
+    def __init__(self, node_name=NODE_NAME, tf_buffer=None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self._tf_buffer = tf_buffer  # with use_tf: this buffer instead of a tf2_ros one
+        self._tf = None
         self._params = ParameterHandler(self, GlobalPlannerParams, PARAMETER_SPECS)
         params = self._params.current
         self._frame_id = params.frame_id
@@ -351,7 +364,11 @@ class GlobalPlannerNode(ManagedNode):
                                           ReliabilityPolicy.RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
                                  RELIABLE_QOS)
-        if params.pose_topic_type == 'odometry':
+        if params.use_tf:
+            self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
+                else frames.make_tf_source(self)
+            self.create_timer(TF_POSE_PERIOD_S, guard('tf', self._on_tf_timer))
+        elif params.pose_topic_type == 'odometry':
             self.create_subscription(Odometry, POSE_TOPICS['odometry'],
                                      guard('odom', self._on_odometry), ANY_PUBLISHER_QOS)
         else:
@@ -374,6 +391,10 @@ class GlobalPlannerNode(ManagedNode):
         self.create_service(Trigger, CANCEL_SERVICE,
                             guard('cancel_goal', self._on_cancel, on_error=self._cancel_refused))
         self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')
+
+    def cleanup(self):
+        """The TF listener goes with the other entities."""
+        self._tf = None
 
     def deactivate(self):
         """The current goal ends ``cancelled`` while the publishers still publish."""
@@ -486,12 +507,21 @@ class GlobalPlannerNode(ManagedNode):
             return  # no map to mark on, or no pose to place the beams with
         params = self._params.current
         stamp = conv.stamp_to_seconds(msg.header.stamp)
-        pose = self._localization.map_pose_at(stamp) if stamp > 0 else None
-        if pose is None:
-            pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
-                else self._poses[-1][1]
-        laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
-        ends, hit = conv.scan_to_rays(msg, tuple(laser), params.laser_frame_id, 'scan')
+        if self._tf is not None:
+            frame = msg.header.frame_id
+            laser = self._tf.planar(params.frame_id, frame)
+            if laser is None:
+                raise InvalidInput(f'scan is in frame {frame!r}, which TF does not connect to '
+                                   f'{params.frame_id!r}')
+            pose = self._poses[-1][1]
+        else:
+            pose = self._localization.map_pose_at(stamp) if stamp > 0 else None
+            if pose is None:
+                pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
+                    else self._poses[-1][1]
+            frame = params.laser_frame_id
+            laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
+        ends, hit = conv.scan_to_rays(msg, tuple(laser), frame, 'scan')
         now = self._now_s()
         if now - self._layer_updated < self._params.current.obstacle_update_period:
             return  # persistence is measured in seconds: every scan is not needed
@@ -553,6 +583,13 @@ class GlobalPlannerNode(ManagedNode):
         self._last_now = now
 
     # -- planning ---------------------------------------------------------------
+
+    def _on_tf_timer(self):
+        """With ``use_tf``: the robot pose from TF; a goal waiting for it is planned."""
+        params = self._params.current
+        pose = self._tf.planar(params.frame_id, params.robot_frame_id)
+        if pose is not None:
+            self._set_start(pose, self.get_clock().now().to_msg(), (0.0, 0.0))
 
     def _replan(self, trigger):
         """Plan from the robot to the current goal; publish the plan or an empty one."""
