@@ -161,6 +161,15 @@ class TfSource:
         return np.array([x, y, yaw_of_quaternion(transform.rotation, what)])
 
 
+    def scan_pose(self, target, scan_frame):
+        """The pose of a scan's frame in ``target`` (latest); InvalidInput when TF has none."""
+        pose = self.planar(target, scan_frame)
+        if pose is None:
+            raise InvalidInput(f'scan is in frame {scan_frame!r}, which TF does not connect to '
+                               f'{target!r}')
+        return pose
+
+
 def make_tf_source(node):
     """A :class:`TfSource` on a ``tf2_ros.Buffer`` filled by a listener on ``node``.
 

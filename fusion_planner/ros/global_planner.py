@@ -509,10 +509,7 @@ class GlobalPlannerNode(ManagedNode):
         stamp = conv.stamp_to_seconds(msg.header.stamp)
         if self._tf is not None:
             frame = msg.header.frame_id
-            laser = self._tf.planar(params.frame_id, frame)
-            if laser is None:
-                raise InvalidInput(f'scan is in frame {frame!r}, which TF does not connect to '
-                                   f'{params.frame_id!r}')
+            laser = self._tf.scan_pose(params.frame_id, frame)
             pose = self._poses[-1][1]
         else:
             pose = self._localization.map_pose_at(stamp) if stamp > 0 else None

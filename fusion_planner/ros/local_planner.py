@@ -600,10 +600,7 @@ class LocalPlannerNode(ManagedNode):
             frame, mount = params.laser_frame_id, (params.laser_x, params.laser_y, params.laser_yaw)
             if self._tf is not None:
                 frame = msg.header.frame_id
-                mount = self._tf.planar(params.robot_frame_id, frame)
-                if mount is None:
-                    raise InvalidInput(f'scan is in frame {frame!r}, which TF does not connect '
-                                       f'to {params.robot_frame_id!r}')
+                mount = self._tf.scan_pose(params.robot_frame_id, frame)
             laser = frames.compose(pose, mount)
             points = conv.scan_to_points(msg, tuple(laser), frame, 'scan')
             self._scan = (points, self._now_s())
