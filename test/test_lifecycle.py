@@ -83,14 +83,23 @@ class Manager:
     def spin_for(self, seconds):
         self.spin_until(lambda: False, seconds)
 
-    def call(self, client, request):
+    def call(self, client, request, attempts=1):
         assert client.wait_for_service(timeout_sec=WAIT_S), 'the node process did not come up'
-        future = client.call_async(request)
-        assert self.spin_until(future.done), 'no answer'
-        return future.result()
+        for _ in range(attempts):
+            future = client.call_async(request)
+            if self.spin_until(future.done, WAIT_S / attempts):
+                return future.result()
+            client.remove_pending_request(future)
+        raise AssertionError('no answer')
 
     def state(self):
-        return self.call(self.get_state, GetState.Request()).current_state.id
+        """The node's state; asked again when unanswered (safe: a query).
+
+        A service can look ready before the node's side has matched us (an
+        old participant of the same name still in discovery): a request
+        sent then is lost. An answered query proves the match both ways.
+        """
+        return self.call(self.get_state, GetState.Request(), attempts=5).current_state.id
 
     def transition(self, transition_id):
         request = ChangeState.Request(transition=Transition(id=transition_id))

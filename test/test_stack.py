@@ -20,7 +20,7 @@ from geometry_msgs.msg import PoseWithCovarianceStamped, TwistStamped  # noqa: E
 from nav_msgs.msg import Odometry, Path  # noqa: E402
 from sensor_msgs.msg import LaserScan  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
-from lifecycle_msgs.msg import Transition  # noqa: E402
+from lifecycle_msgs.msg import State, Transition  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from fusion_planner.ros import conversions as conv  # noqa: E402
@@ -123,6 +123,7 @@ def test_local_planner_takes_a_latched_pose_and_a_volatile_plan_and_is_silent_wh
     # before its first command.
     proc = start_node('local_planner', '-p', 'autostart:=false')
     try:
+        assert manager.state() == State.PRIMARY_STATE_UNCONFIGURED  # matched both ways
         assert manager.transition(Transition.TRANSITION_CONFIGURE)
         assert manager.spin_until(lambda: manager.node.count_publishers('/cmd_vel') > 0)
         manager.spin_for(0.5)
