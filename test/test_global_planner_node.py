@@ -30,6 +30,8 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core import raster
@@ -37,6 +39,7 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.global_planning.planner import GlobalPlanner
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros import fuzz
+from fusion_planner.ros.goal_outcome import controller_outcome_msg
 from fusion_planner.ros.global_planner import (
     LATCHED_QOS, PARAMETER_SPECS, GlobalPlannerNode, nearest_free_goal)
 
@@ -108,7 +111,9 @@ class Harness:
         self.ctx = ctx
         self.planner = GlobalPlannerNode(
             context=ctx, namespace=self.ns,
-            parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS), *overrides])
+            # map-frame odometry as the pose source unless a test picks amcl_pose
+            parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS),
+                                 Parameter('pose_topic_type', value='odometry'), *overrides])
         self.tester = Node('tester', context=ctx, namespace=self.ns)
         self.plans, self.markers, self.statuses = [], [], []
         t = self.tester
@@ -119,9 +124,14 @@ class Harness:
         self.goal_pub = t.create_publisher(PoseStamped, 'goal_pose', 10)
         t.create_subscription(Path, 'plan', self.plans.append, LATCHED_QOS)
         t.create_subscription(MarkerArray, 'plan_markers', self.markers.append, 10)
-        t.create_subscription(DiagnosticArray, 'diagnostics',
+        t.create_subscription(DiagnosticArray, '/diagnostics',
                               lambda m: self.statuses.extend(m.status), 10)
         self.client = t.create_client(GetPlan, 'get_plan')
+        self.goal_outcomes = []
+        t.create_subscription(String, 'goal_outcome',
+                              lambda m: self.goal_outcomes.append(m.data), 10)
+        self.controller_outcome_pub = t.create_publisher(DiagnosticStatus, 'controller_outcome', 10)
+        self.cancel_client = t.create_client(Trigger, 'cancel_goal')
         self.executor = SingleThreadedExecutor(context=ctx)
         self.executor.add_node(self.planner)
         self.executor.add_node(t)
@@ -156,6 +166,12 @@ class Harness:
         else:
             self.odom_pub.publish(odom_msg(*start))
         assert self.spin_until(lambda: self.planner._start is not None), 'odom not received'
+
+    def call_cancel(self):
+        assert self.cancel_client.wait_for_service(timeout_sec=TIMEOUT_S)
+        future = self.cancel_client.call_async(Trigger.Request())
+        assert self.spin_until(future.done)
+        return future.result()
 
     def send_goal(self, x, y, frame='map'):
         count = len(self.plans)
@@ -271,6 +287,48 @@ def test_new_map_blocking_the_plan_triggers_replan(harness):
     harness.map_pub.publish(map_msg(wall_map(block_low=True, block_high=True)))
     assert harness.spin_until(lambda: len(harness.plans[-1].poses) == 0)
     assert harness.spin_until(lambda: 'no_valid_path' in harness.outcomes())
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['no_path'])
+    # The goal ended: reopening the way resumes nothing.
+    count = len(harness.plans)
+    harness.map_pub.publish(map_msg(wall_map()))
+    harness.spin_for(1.0)
+    assert len(harness.plans) == count and harness.goal_outcomes == ['no_path']
+
+
+def test_every_goal_ends_with_exactly_one_outcome(harness):
+    harness.setup_world()
+    assert harness.send_goal(*GOAL)
+    assert harness.send_goal(GOAL[0], GOAL[1] - 0.5)  # replaces the first
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['preempted'])
+
+    # The local planner's outcome of an older plan is ignored; of the current one, taken.
+    plan_stamp = conv.stamp_to_nanoseconds(harness.plans[-1].header.stamp)
+    harness.controller_outcome_pub.publish(
+        controller_outcome_msg('reached', plan_stamp - 1, '', '/local_planner'))
+    harness.spin_for(0.5)
+    assert harness.goal_outcomes == ['preempted']
+    count = len(harness.plans)
+    harness.controller_outcome_pub.publish(
+        controller_outcome_msg('reached', plan_stamp, '', '/local_planner'))
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['preempted', 'reached'])
+    assert harness.spin_until(lambda: len(harness.plans) > count)
+    assert len(harness.plans[-1].poses) == 0, 'a late follower must not drive the old plan'
+    assert harness.diag_values()['goal_outcome'] == 'reached'
+
+    # Cancel: the plan empties, the outcome is cancelled; a second cancel has nothing to end.
+    assert harness.send_goal(*GOAL)
+    assert harness.call_cancel().success
+    assert harness.spin_until(lambda: harness.goal_outcomes[-1:] == ['cancelled'])
+    assert harness.spin_until(lambda: len(harness.plans[-1].poses) == 0)
+    again = harness.call_cancel()
+    assert not again.success and 'no goal' in again.message
+    # Nothing resumes the cancelled goal: not a new start pose, not a new map.
+    count = len(harness.plans)
+    harness.odom_pub.publish(odom_msg(START[0] + 0.1, START[1]))
+    harness.map_pub.publish(map_msg(wall_map(extra=(slice(28, 32), slice(75, 78)))))
+    harness.spin_for(1.0)
+    assert len(harness.plans) == count
+    assert harness.goal_outcomes == ['preempted', 'reached', 'cancelled']
 
 
 def test_bad_messages_do_not_kill_the_node(harness):
@@ -441,6 +499,7 @@ def test_params_yaml_lists_exactly_the_declared_parameters(context):
     sections = [key for key in doc if key.split('/')[-1] == 'global_planner']
     assert len(sections) == 1, 'params.yaml needs exactly one global_planner section'
     listed = doc[sections[0]]['ros__parameters']
+    assert listed.pop('use_sim_time') is True  # the bundled setup runs on the simulator's clock
     declared = {spec.name for spec in PARAMETER_SPECS}
     assert set(listed) == declared
     node = GlobalPlannerNode(context=context,
@@ -489,3 +548,50 @@ def test_executable_refuses_bad_parameters_with_one_line():
     output, _ = proc.communicate(timeout=30.0)
     assert proc.returncode == 1
     assert 'alpha' in output and 'out of range' in output and 'Traceback' not in output
+
+
+def test_with_use_tf_the_start_and_the_laser_pose_come_from_a_tf_buffer(context):
+    from test_local_planner_node import BufferStandIn
+
+    buffer = BufferStandIn({('map', 'base_link'): (START[0], START[1], 0.0)})
+    node = GlobalPlannerNode(context=context, namespace='/gp_tf', tf_buffer=buffer,
+                             parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS),
+                                                  Parameter('use_tf', value=True)])
+    tester = Node('tf_tester', context=context, namespace='/gp_tf')
+    plans = []
+    tester.create_subscription(Path, 'plan', plans.append, LATCHED_QOS)
+    map_pub = tester.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
+    goal_pub = tester.create_publisher(PoseStamped, 'goal_pose', 10)
+    scan_pub = tester.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(tester)
+
+    def spin_until(condition):
+        deadline = time.monotonic() + TIMEOUT_S
+        while not condition() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        return condition()
+
+    try:
+        assert not any(name.endswith(('/odom', '/amcl_pose')) for name, _ in
+                       node.get_subscriber_names_and_types_by_node('global_planner', '/gp_tf'))
+        map_pub.publish(map_msg(wall_map()))
+        assert spin_until(lambda: node._start is not None and goal_pub.get_subscription_count())
+        goal_pub.publish(pose_msg(*GOAL))
+        assert spin_until(lambda: plans and plans[-1].poses)
+        path = conv.path_from_msg(plans[-1], 'map')
+        assert math.dist(path[0], START) <= RESOLUTION and ('map', 'base_link') in buffer.asked
+        # A scan whose frame TF does not know is refused, with the frame named.
+        scan = LaserScan()
+        scan.header.frame_id = 'camera'
+        scan.angle_min, scan.angle_increment, scan.range_max = -1.0, 0.1, 5.0
+        scan.ranges = [1.0] * 20
+        assert spin_until(lambda: scan_pub.get_subscription_count() > 0)
+        scan_pub.publish(scan)
+        assert spin_until(lambda: 'camera' in node._diagnostics.values['last_error'])
+        assert ('map', 'camera') in buffer.asked
+    finally:
+        executor.shutdown()
+        tester.destroy_node()
+        node.destroy_node()

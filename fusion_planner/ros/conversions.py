@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, PoseStamped, Quaternion, Twist, TwistStamped
+from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Path
 from visualization_msgs.msg import Marker, MarkerArray
 
@@ -100,6 +100,17 @@ def stamp_to_seconds(stamp):
     12.25
     """
     return stamp.sec + stamp.nanosec / NS_PER_S
+
+
+def stamp_to_nanoseconds(stamp):
+    """Integer nanoseconds of a ``builtin_interfaces/Time`` (exact, unlike seconds).
+
+    Examples
+    --------
+    >>> stamp_to_nanoseconds(seconds_to_stamp(1.5))
+    1500000000
+    """
+    return stamp.sec * NS_PER_S + stamp.nanosec
 
 
 def seconds_to_stamp(seconds):
@@ -218,6 +229,14 @@ def quaternion_of_yaw(yaw):
     return Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
 
 
+def xy_yaw_to_pose(pose):
+    """A ``geometry_msgs/Pose`` of ``(x, y, yaw)`` [m, m, rad] (z = 0)."""
+    msg = Pose()
+    msg.position.x, msg.position.y = float(pose[0]), float(pose[1])
+    msg.orientation = quaternion_of_yaw(pose[2])
+    return msg
+
+
 def pose_to_xy_yaw(pose, what='pose'):
     """Planar pose of a ``geometry_msgs/Pose``.
 
@@ -271,10 +290,13 @@ def pose_stamped_to_xy_yaw(msg, frame_id, what='pose'):
 def pose_with_covariance_to_xy_yaw(msg, frame_id, what='pose'):
     """Planar pose of a ``geometry_msgs/PoseWithCovarianceStamped`` (e.g. AMCL).
 
-    The covariance is not used. Parameters, returns and errors as
-    :func:`pose_stamped_to_xy_yaw`.
+    Parameters, returns and errors as :func:`pose_stamped_to_xy_yaw`; a
+    covariance with a NaN or infinite entry (a localizer that lost track) is
+    refused too (InvalidInput).
     """
     check_frame(msg.header.frame_id, frame_id, what)
+    if not all(math.isfinite(value) for value in msg.pose.covariance):
+        raise InvalidInput(f'{what} covariance has a NaN or infinite entry')
     return pose_to_xy_yaw(msg.pose.pose, what)
 
 

@@ -48,12 +48,14 @@ import rclpy
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion, Twist
 from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Header
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from fusion_planner.core import raster
@@ -61,6 +63,8 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S, RateLimitedLogger
+from fusion_planner.ros.goal_outcome import CONTROLLER_OUTCOMES
+from fusion_planner.ros.qos import LatchedOrVolatile
 
 #: A message and the names of the defects put into it (empty: a valid message).
 Fuzzed = namedtuple('Fuzzed', 'msg defects')
@@ -91,8 +95,9 @@ CHUNK = 500
 SHOWN_CHARS = 1500
 #: Slack on velocity limits [m/s or rad/s].
 LIMIT_EPS = 1e-9
-#: Services every rclpy node has (parameters, type descriptions): not ours.
-RCLPY_SERVICE_PACKAGES = ('rcl_interfaces', 'type_description_interfaces')
+#: Services every rclpy (lifecycle) node has (parameters, type descriptions, lifecycle
+#: transitions, tested in test_lifecycle.py): not ours.
+RCLPY_SERVICE_PACKAGES = ('rcl_interfaces', 'type_description_interfaces', 'lifecycle_msgs')
 
 
 # -- strategies: numbers, headers, poses ---------------------------------------------
@@ -208,13 +213,19 @@ def pose_stampeds(draw, frame=MAP_FRAME, bad_only=False):
     return Fuzzed(msg, defects)
 
 
+#: Defects of a PoseWithCovarianceStamped: those of its pose, a NaN or infinite covariance.
+POSE_WITH_COVARIANCE_DEFECTS = POSE_DEFECTS + ('covariance',)
+_FINITE = st.floats(allow_nan=False, allow_infinity=False)
+
+
 @st.composite
 def poses_with_covariance(draw, frame=MAP_FRAME, bad_only=False):
-    """``geometry_msgs/PoseWithCovarianceStamped`` (AMCL); the covariance is not read."""
-    defects = draw(_defect_sets(POSE_DEFECTS, bad_only))
+    """``geometry_msgs/PoseWithCovarianceStamped`` (AMCL); a non-finite covariance is a defect."""
+    defects = draw(_defect_sets(POSE_WITH_COVARIANCE_DEFECTS, bad_only))
     msg = PoseWithCovarianceStamped()
     _stamped_pose(draw, msg, msg.pose.pose, frame, defects)
-    msg.pose.covariance[draw(st.integers(0, 35))] = draw(_ANY)
+    msg.pose.covariance[draw(st.integers(0, 35))] = draw(
+        _NON_FINITE if 'covariance' in defects else _FINITE)
     return Fuzzed(msg, defects)
 
 
@@ -521,6 +532,45 @@ def twists(draw, speed_limit, omega_limit, bad_only=False):
     return Fuzzed(msg, defects)
 
 
+#: Defects of a controller outcome: an unknown outcome word, a missing or
+#: non-integer plan stamp.
+CONTROLLER_OUTCOME_DEFECTS = ('outcome', 'plan stamp')
+_TEXT = st.text(max_size=20)
+
+
+@st.composite
+def controller_outcomes(draw, bad_only=False):
+    """``diagnostic_msgs/DiagnosticStatus`` on ``controller_outcome``, as :data:`Fuzzed`."""
+    defects = draw(_defect_sets(CONTROLLER_OUTCOME_DEFECTS, bad_only))
+    outcome = draw(st.sampled_from(CONTROLLER_OUTCOMES))
+    if 'outcome' in defects:
+        outcome = draw(_TEXT.filter(lambda text: text not in CONTROLLER_OUTCOMES))
+    values = [KeyValue(key='reason', value=draw(_TEXT))]
+    if 'plan stamp' not in defects:
+        values.append(KeyValue(key='plan_stamp_ns', value=str(draw(st.integers(0, 2 ** 63)))))
+    elif draw(_BOOL):
+        values.append(KeyValue(key='plan_stamp_ns', value=draw(_TEXT.filter(_not_integer))))
+    return Fuzzed(DiagnosticStatus(level=draw(st.sampled_from((b'\x00', b'\x02'))),
+                                   name=draw(_TEXT), message=outcome, values=values), defects)
+
+
+def _not_integer(text):
+    try:
+        int(text)
+    except ValueError:
+        return True
+    return False
+
+
+#: Inputs without fields (a Trigger request): every message is valid.
+FIELDLESS_INPUTS = ('cancel_goal',)
+
+
+def triggers(bad_only=False):
+    """``std_srvs/Trigger`` requests (no fields, so no defects; ``bad_only`` is ignored)."""
+    return st.just(Fuzzed(Trigger.Request(), []))
+
+
 def generate(strategy, count, seed_value=0):
     """Yield ``count`` examples of ``strategy``, the same ones for the same seed.
 
@@ -622,7 +672,11 @@ class FuzzTarget:
         self.inputs = {}
         for sub in node.subscriptions:
             if sub.topic_name != '/clock':
-                self.inputs[sub.topic_name.rsplit('/', 1)[-1]] = (sub.msg_type, sub.callback)
+                # Past the duplicate filter of a topic subscribed twice: every
+                # fuzzed message must reach the node's own callback.
+                owner = getattr(getattr(sub.callback, 'func', None), '__self__', None)
+                callback = owner.callback if isinstance(owner, LatchedOrVolatile) else sub.callback
+                self.inputs[sub.topic_name.rsplit('/', 1)[-1]] = (sub.msg_type, callback)
         for srv in node.services:
             if not srv.srv_type.__module__.startswith(RCLPY_SERVICE_PACKAGES):
                 self.inputs[srv.service_name.rsplit('/', 1)[-1]] = (
@@ -638,6 +692,7 @@ class FuzzTarget:
             If the input's type has no strategy (a new input: add one).
         """
         factories = {OccupancyGrid: occupancy_grids, PoseStamped: pose_stampeds,
+                     DiagnosticStatus: controller_outcomes, Trigger: triggers,
                      PoseWithCovarianceStamped: poses_with_covariance, Odometry: odometries,
                      Path: paths, MarkerArray: marker_arrays, GetPlan: get_plan_requests,
                      LaserScan: lambda bad_only: laser_scans(ROBOT_FRAME, bad_only)}
@@ -856,6 +911,8 @@ class LocalPlannerTarget(FuzzTarget):
 
         super().__init__(LocalPlannerNode(context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True), Parameter('diagnostics_period', value=0.0),
+            Parameter('max_map_cells', value=MAX_MAP_CELLS),
+            Parameter('odom_frame_id', value=MAP_FRAME),  # odometry in the map frame
             Parameter('plan_timeout', value=0.0)]))  # no plan publisher here: never time out
         node = self.node
         self.dt = 1.0 / node.get_parameter('control_rate').value

@@ -2,22 +2,31 @@
 
 Topics (relative names, so a namespace or a remap applies):
 
-- ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local, depth 1) in:
+- ``map`` (nav_msgs/OccupancyGrid; latched or volatile reliable publishers,
+  see :class:`~fusion_planner.ros.qos.LatchedOrVolatile`) in:
   converted once per map into a :class:`~fusion_planner.core.grid.GridMap`
   whose inflation and search grid are reused by every plan on it.
 - ``goal_pose`` (geometry_msgs/PoseStamped) in: plans from the latest robot
   pose and publishes on ``plan``.
-- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``) or, with
-  ``pose_topic_type: pose_with_covariance``, ``amcl_pose``
-  (geometry_msgs/PoseWithCovarianceStamped) in: the start pose. Subscribed
-  best-effort, which matches reliable and best-effort publishers alike.
+- ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, frame
+  ``frame_id``; default ``pose_topic_type: pose_with_covariance``) in: the
+  start pose, from the localizer; AMCL's latched pose (reliable, transient
+  local) sent before the node joined is taken too. With it, ``odom``
+  (nav_msgs/Odometry in ``odom_frame_id``) places scans between the
+  localization poses through the map -> odom correction
+  (:class:`~fusion_planner.ros.frames.Localization`).
+- ``odom`` with ``pose_topic_type: odometry`` in: odometry that is already
+  in ``frame_id`` (a localizer's fused output) as the start pose. ``odom`` is
+  subscribed best-effort, which matches reliable and best-effort publishers
+  alike.
 - ``plan`` (nav_msgs/Path, reliable, transient_local) out: the smoothed
   path; an *empty* path when planning for the current goal failed, so a
   follower stops instead of driving an old plan.
 - ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
   expanded cells when ``publish_expanded`` is set.
-- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
-  ``robot_frame_id``: the laser at the robot centre) in, with
+- ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
+  mounted at ``laser_x``, ``laser_y``, ``laser_yaw``; with ``use_tf`` its
+  frame and the robot pose come from TF) in, with
   ``mark_obstacles``: obstacles the map does not show are learnt from the
   returns (marked once seen for ``obstacle_persistence``, cleared when a
   beam passes through them again; :class:`~fusion_planner.core.global_planning.obstacle_layer.ObstacleLayer`),
@@ -25,12 +34,19 @@ Topics (relative names, so a namespace or a remap applies):
   confirmed ones, and a plan they block is replaced at once.
 - ``get_plan`` (nav_msgs/srv/GetPlan): plans between the request's poses
   without touching ``plan``; an empty path on failure.
-- ``diagnostics`` out: outcome of each request (``succeeded`` or the
+- ``cancel_goal`` (std_srvs/srv/Trigger): ends the current goal
+  (``cancelled``); ``success`` is false when there is none.
+- ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) in: how the
+  local planner's run of one of this goal's plans ended.
+- ``goal_outcome`` (std_msgs/String, reliable) out: exactly one outcome
+  per goal (:mod:`~fusion_planner.ros.goal_outcome`); the goal is then
+  forgotten and an empty plan published, so nothing resumes it.
+- ``/diagnostics`` out: outcome of each request (``succeeded`` or the
   ``.outcome`` of the core error: ``start_outside_map``, ``goal_occupied``,
   ``no_valid_path``, ``timeout`` ...; ``no_map`` and ``no_start_pose`` while
   waiting), plan time and figures.
 
-Replanning happens on a new goal, on the first start pose after a goal that
+Replanning (for the current goal, until it ends) happens on a new goal, on the first start pose after a goal that
 was waiting for one, when a confirmed scan obstacle comes within the robot
 radius of the rest of the plan, and on a new map that leaves no valid plan
 (a new map also forgets the scan obstacles): the current
@@ -52,9 +68,10 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
-from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
+from diagnostic_msgs.msg import DiagnosticStatus
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+from rclpy.qos import ReliabilityPolicy
 from scipy import ndimage
 from scipy.spatial import cKDTree
 from sensor_msgs.msg import LaserScan
@@ -68,8 +85,14 @@ from fusion_planner.core.map_files import DEFAULT_OCCUPIED_THRESHOLD
 from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
 from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
-from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
+from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
+from fusion_planner.ros.goal_outcome import (
+    CANCEL_SERVICE, CONTROLLER_OUTCOME_TOPIC, GOAL_OUTCOME_TOPIC, controller_outcome_from_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
+from fusion_planner.ros import frames
+from fusion_planner.ros.frames import Localization
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -78,13 +101,6 @@ NODE_NAME = 'global_planner'
 #: ``pose_topic_type`` values and the topic each one subscribes.
 POSE_TOPICS = {'odometry': 'odom', 'pose_with_covariance': 'amcl_pose'}
 
-#: QoS of ``map`` and ``plan``: latched (a late joiner gets the last one).
-LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: QoS of ``goal_pose``.
-GOAL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-#: Queue depth of ``plan_markers`` [messages].
-MARKERS_DEPTH = 10
 
 #: Largest tolerance search radius [cells]; a larger tolerance is clipped to
 #: it so the search window stays (2 * 500 + 1)^2 cells at most.
@@ -99,6 +115,8 @@ POSE_HISTORY = 50
 POSE_EXTRAPOLATION_S = 0.5
 #: A node-clock step backwards larger than this [s] is a clock reset.
 CLOCK_JUMP_TOLERANCE_S = 1e-3
+#: Period of the robot pose lookup in TF with ``use_tf`` [s].
+TF_POSE_PERIOD_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -106,7 +124,8 @@ class GlobalPlannerParams:
     """Tunables of the global planner node (see :data:`PARAMETER_SPECS`)."""
 
     frame_id: str = 'map'
-    pose_topic_type: str = 'odometry'
+    pose_topic_type: str = 'pose_with_covariance'
+    odom_frame_id: str = 'odom'
     algorithm: str = 'improved'
     neighbourhood: int = 8
     alpha: float = 1.0
@@ -122,12 +141,18 @@ class GlobalPlannerParams:
     goal_tolerance: float = 0.5
     publish_expanded: bool = False
     mark_obstacles: bool = True
+    laser_frame_id: str = 'base_link'
+    use_tf: bool = False
     robot_frame_id: str = 'base_link'
+    laser_x: float = 0.0
+    laser_y: float = 0.0
+    laser_yaw: float = 0.0
     obstacle_persistence: float = 1.0
     obstacle_mark_range: float = 3.0
     obstacle_clear_range: float = 4.0
     obstacle_update_period: float = 0.2
     diagnostics_period: float = 1.0
+    autostart: bool = True
 
     def __post_init__(self):
         self.planner_config()  # the core validates algorithm, weights, radii
@@ -156,10 +181,13 @@ class GlobalPlannerParams:
 #: Every parameter of the node; config/params.yaml lists the same names.
 PARAMETER_SPECS = (
     ParameterSpec('frame_id', 'map', 'frame of the map, poses and plan', read_only=True),
-    ParameterSpec('pose_topic_type', 'odometry',
-                  "source of the start pose: 'odometry' (nav_msgs/Odometry on odom) or "
-                  "'pose_with_covariance' (PoseWithCovarianceStamped on amcl_pose)",
-                  read_only=True, choices=tuple(POSE_TOPICS)),
+    ParameterSpec('pose_topic_type', 'pose_with_covariance',
+                  "source of the start pose: 'pose_with_covariance' (a localizer's "
+                  "PoseWithCovarianceStamped on amcl_pose) or 'odometry' (nav_msgs/Odometry on "
+                  'odom, already in frame_id)', read_only=True, choices=tuple(POSE_TOPICS)),
+    ParameterSpec('odom_frame_id', 'odom',
+                  'frame of the odometry that places scans between amcl_pose messages',
+                  read_only=True),
     ParameterSpec('algorithm', 'improved',
                   "search algorithm: 'dijkstra', 'astar' (with the 8-neighbourhood: jump points, "
                   "optimal) or 'improved' (the paper's improved A*)",
@@ -191,8 +219,19 @@ PARAMETER_SPECS = (
     ParameterSpec('mark_obstacles', True,
                   'learn obstacles the map does not show from scan and plan around them',
                   read_only=True),
-    ParameterSpec('robot_frame_id', 'base_link', 'frame of the scan (the laser at the robot centre)',
+    ParameterSpec('laser_frame_id', 'base_link', 'frame of the scan', read_only=True),
+    ParameterSpec('use_tf', False,
+                  'take the robot pose (map -> robot_frame_id) and the laser pose from TF (needs '
+                  'tf2_ros, a full ROS install) instead of amcl_pose or odom and the laser_* '
+                  'parameters', read_only=True),
+    ParameterSpec('robot_frame_id', 'base_link', 'robot frame, looked up in TF with use_tf',
                   read_only=True),
+    ParameterSpec('laser_x', 0.0, 'laser position ahead of the robot centre, robot frame [m]',
+                  float_range(-10.0, 10.0), read_only=True),
+    ParameterSpec('laser_y', 0.0, 'laser position left of the robot centre, robot frame [m]',
+                  float_range(-10.0, 10.0), read_only=True),
+    ParameterSpec('laser_yaw', 0.0, 'laser heading in the robot frame [rad]',
+                  float_range(-math.pi, math.pi), read_only=True),
     ParameterSpec('obstacle_persistence', 1.0,
                   'a scan return must stay in its cell this long to become an obstacle [s]',
                   float_range(0.0, 60.0), read_only=True),
@@ -206,6 +245,7 @@ PARAMETER_SPECS = (
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),
+    ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
 )
 
 
@@ -265,8 +305,12 @@ def nearest_free_goal(grid, traversable, goal, tolerance, components=None, start
     return grid.world_of(np.array([rows.start + r, cols.start + c]))
 
 
-class GlobalPlannerNode(Node):
+class GlobalPlannerNode(ManagedNode):
     """The global planner node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    inactive, it refuses goals and plans; deactivating it cancels the
+    current goal.
 
     Parameters
     ----------
@@ -281,12 +325,20 @@ class GlobalPlannerNode(Node):
         If the start-up parameters are out of range or inconsistent.
     """
 
-    def __init__(self, node_name=NODE_NAME, **kwargs):
+    def __init__(self, node_name=NODE_NAME, tf_buffer=None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self._tf_buffer = tf_buffer  # with use_tf: this buffer instead of a tf2_ros one
+        self._tf = None
         self._params = ParameterHandler(self, GlobalPlannerParams, PARAMETER_SPECS)
         params = self._params.current
         self._frame_id = params.frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def configure(self):
+        """Fresh state; the publishers, subscriptions and services."""
+        params = self._params.current
         # Map state: the accepted message (kept to rebuild on a parameter
         # change), the options it was converted with, its planner.
         self._map_msg = None
@@ -294,34 +346,62 @@ class GlobalPlannerNode(Node):
         self._planner = None
         self._components = None  # (radius, labels) of the traversable mask
         self._start = None  # (x, y, yaw) [m, m, rad]
-        self._goal = None  # (x, y, yaw) of the current goal_pose goal
+        self._goal = None  # (x, y, yaw) of the current goal_pose goal, None once it ended
+        self._goal_plan_stamps = set()  # stamps of the plans published for it [ns]
         self._waiting = False  # the current goal waits for a map or a start pose
         self._plan = None  # (N, 2) published plan, None when none is valid
         self._layer = None  # ObstacleLayer of the scans on the current map
         self._marked_planner = None  # planner on the map plus confirmed scan obstacles
         self._poses = collections.deque(maxlen=POSE_HISTORY)  # (stamp, pose, velocity)
+        self._localization = Localization(POSE_EXTRAPOLATION_S)
         self._last_now = -math.inf  # latest node-clock time seen [s]
         self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
         guard = self._diagnostics.guard
-        self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, 'plan_markers', MARKERS_DEPTH)
-        self.create_subscription(OccupancyGrid, 'map', guard('map', self._on_map), LATCHED_QOS)
+        self._plan_pub = self.create_lifecycle_publisher(Path, 'plan', LATCHED_QOS)
+        self._markers_pub = self.create_lifecycle_publisher(MarkerArray, 'plan_markers',
+                                                            RELIABLE_QOS)
+        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
+                                          ReliabilityPolicy.RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
-                                 GOAL_QOS)
-        if params.pose_topic_type == 'odometry':
+                                 RELIABLE_QOS)
+        if params.use_tf:
+            self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
+                else frames.make_tf_source(self)
+            self.create_timer(TF_POSE_PERIOD_S, guard('tf', self._on_tf_timer))
+        elif params.pose_topic_type == 'odometry':
             self.create_subscription(Odometry, POSE_TOPICS['odometry'],
-                                     guard('odom', self._on_odometry), qos_profile_sensor_data)
+                                     guard('odom', self._on_odometry), ANY_PUBLISHER_QOS)
         else:
-            self.create_subscription(PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
-                                     guard('amcl_pose', self._on_pose_with_covariance),
-                                     qos_profile_sensor_data)
+            self._pose_sub = LatchedOrVolatile(
+                self, PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
+                guard('amcl_pose', self._on_pose_with_covariance), ReliabilityPolicy.BEST_EFFORT)
+            if params.mark_obstacles:
+                self.create_subscription(Odometry, 'odom', guard('odom', self._on_wheel_odometry),
+                                         ANY_PUBLISHER_QOS)
         if params.mark_obstacles:
             self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
-                                     qos_profile_sensor_data)
+                                     ANY_PUBLISHER_QOS)
         self.create_service(GetPlan, 'get_plan',
                             guard('get_plan', self._on_get_plan, on_error=self._empty_response))
+        self._outcome_pub = self.create_lifecycle_publisher(String, GOAL_OUTCOME_TOPIC,
+                                                            RELIABLE_QOS)
+        self.create_subscription(DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC,
+                                 guard('controller_outcome', self._on_controller_outcome),
+                                 RELIABLE_QOS)
+        self.create_service(Trigger, CANCEL_SERVICE,
+                            guard('cancel_goal', self._on_cancel, on_error=self._cancel_refused))
         self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')
+
+    def cleanup(self):
+        """The TF listener goes with the other entities."""
+        self._tf = None
+
+    def deactivate(self):
+        """The current goal ends ``cancelled`` while the publishers still publish."""
+        if self._goal is not None:
+            self._end_goal('cancelled', 'the node was deactivated')
+        self._diagnostics.update(WARN, 'inactive')
 
     # -- callbacks ------------------------------------------------------------
 
@@ -343,10 +423,59 @@ class GlobalPlannerNode(Node):
             self._replan('map')
 
     def _on_goal(self, msg):
-        """Plan to a new goal."""
-        self._goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        """Plan to a new goal; one still active ends ``preempted``."""
+        goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        if not self.active:
+            self._diagnostics.log.warning('goal_pose/inactive',
+                                          'goal_pose ignored: the node is inactive')
+            return
+        if self._goal is not None:
+            self._end_goal('preempted', 'a newer goal arrived', stop=False)
+        self._goal = goal
         self._check_clock()
         self._replan('goal_pose')
+
+    def _on_cancel(self, request, response):
+        """Serve ``cancel_goal``: the current goal ends ``cancelled``, the robot stops."""
+        if self._goal is None:
+            response.success, response.message = False, 'no goal to cancel'
+            return response
+        self._end_goal('cancelled', 'cancel_goal was called')
+        response.success, response.message = True, 'goal cancelled'
+        return response
+
+    def _cancel_refused(self, request, response):
+        response.success, response.message = False, 'cancel failed: see the diagnostics'
+        return response
+
+    def _on_controller_outcome(self, msg):
+        """End the goal when the local planner's run of one of its plans ended."""
+        outcome, plan_stamp, reason = controller_outcome_from_msg(msg)
+        if self._goal is None or plan_stamp not in self._goal_plan_stamps:
+            return  # the run of an older goal's plan
+        self._end_goal(outcome, reason)
+
+    def _end_goal(self, outcome, reason, stop=True):
+        """Publish, log and report the current goal's one outcome, then forget the goal.
+
+        With ``stop`` an empty plan goes out, so a follower stops and a late
+        one does not drive the latched old plan.
+        """
+        goal = self._goal
+        self._goal = None
+        self._goal_plan_stamps.clear()
+        self._waiting = False
+        if stop:
+            self._plan = None
+            self._plan_pub.publish(self._empty_path())
+        self._outcome_pub.publish(String(data=outcome))
+        line = f'goal ({goal[0]:.2f}, {goal[1]:.2f}) ended: {outcome}' + (
+            f' ({reason})' if reason else '')
+        if outcome in ('reached', 'cancelled', 'preempted'):
+            self.get_logger().info(line)
+        else:
+            self.get_logger().warning(line)
+        self._diagnostics.update(OK if outcome == 'reached' else WARN, line, goal_outcome=outcome)
 
     def _on_odometry(self, msg):
         pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
@@ -354,7 +483,14 @@ class GlobalPlannerNode(Node):
 
     def _on_pose_with_covariance(self, msg):
         pose = conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose')
+        self._localization.add_localization(conv.stamp_to_seconds(msg.header.stamp), pose)
         self._set_start(pose, msg.header.stamp, (0.0, 0.0))
+
+    def _on_wheel_odometry(self, msg):
+        """Odometry in the odom frame: places scans between localization poses."""
+        pose = conv.odometry_to_xy_yaw(msg, self._params.current.odom_frame_id, 'odom')
+        self._localization.add_odometry(conv.stamp_to_seconds(msg.header.stamp), pose,
+                                        conv.odometry_to_velocity(msg, 'odom'))
 
     def _set_start(self, pose, stamp, velocity):
         self._check_clock()
@@ -371,11 +507,20 @@ class GlobalPlannerNode(Node):
         self._check_clock()
         if self._layer is None or not self._poses:
             return  # no map to mark on, or no pose to place the beams with
+        params = self._params.current
         stamp = conv.stamp_to_seconds(msg.header.stamp)
-        pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
-            else self._poses[-1][1]
-        ends, hit = conv.scan_to_rays(msg, tuple(pose), self._params.current.robot_frame_id,
-                                      'scan')
+        if self._tf is not None:
+            frame = msg.header.frame_id
+            laser = self._tf.scan_pose(params.frame_id, frame)
+            pose = self._poses[-1][1]
+        else:
+            pose = self._localization.map_pose_at(stamp) if stamp > 0 else None
+            if pose is None:
+                pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
+                    else self._poses[-1][1]
+            frame = params.laser_frame_id
+            laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
+        ends, hit = conv.scan_to_rays(msg, tuple(laser), frame, 'scan')
         now = self._now_s()
         if now - self._layer_updated < self._params.current.obstacle_update_period:
             return  # persistence is measured in seconds: every scan is not needed
@@ -391,6 +536,10 @@ class GlobalPlannerNode(Node):
     def _on_get_plan(self, request, response):
         """Serve nav_msgs/srv/GetPlan; the published plan is left alone."""
         response.plan = self._empty_path()
+        if not self.active:
+            self._diagnostics.log.warning('get_plan/inactive',
+                                          'get_plan answered empty: the node is inactive')
+            return response
         try:
             start = conv.pose_stamped_to_xy_yaw(request.start, self._frame_id, 'start')
             goal = conv.pose_stamped_to_xy_yaw(request.goal, self._frame_id, 'goal')
@@ -424,6 +573,7 @@ class GlobalPlannerNode(Node):
                 'waiting for a fresh start pose')
             self._start = None
             self._poses.clear()
+            self._localization.clear()
             self._layer_updated = -math.inf
             if self._layer is not None:
                 self._layer.reset()
@@ -432,6 +582,13 @@ class GlobalPlannerNode(Node):
         self._last_now = now
 
     # -- planning ---------------------------------------------------------------
+
+    def _on_tf_timer(self):
+        """With ``use_tf``: the robot pose from TF; a goal waiting for it is planned."""
+        params = self._params.current
+        pose = self._tf.planar(params.frame_id, params.robot_frame_id)
+        if pose is not None:
+            self._set_start(pose, self.get_clock().now().to_msg(), (0.0, 0.0))
 
     def _replan(self, trigger):
         """Plan from the robot to the current goal; publish the plan or an empty one."""
@@ -450,14 +607,17 @@ class GlobalPlannerNode(Node):
             result, used_goal = self._plan_to(
                 self._start, goal, self._params.current.goal_tolerance)
         except Exception as err:  # noqa: BLE001 - re-raised below unless a planning outcome
-            self._plan = None
-            self._plan_pub.publish(self._empty_path())  # followers stop, whatever went wrong
             if not isinstance(err, PlanningError):
+                self._plan = None
+                self._plan_pub.publish(self._empty_path())  # followers stop
                 raise  # a bug: the callback guard logs it and reports a fault
             self._diagnostics.failed(err, trigger)
+            self._end_goal('no_path', f'{err.outcome}: {err}')
             return
         self._plan = result.path
-        self._plan_pub.publish(conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2]))
+        msg = conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2])
+        self._goal_plan_stamps.add(conv.stamp_to_nanoseconds(msg.header.stamp))
+        self._plan_pub.publish(msg)
         self._markers_pub.publish(self._markers(result))
         self._report_success(trigger, result, goal, used_goal)
 

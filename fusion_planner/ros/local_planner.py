@@ -8,27 +8,55 @@ controller at a fixed rate on the node clock (sim time under
 
 Topics (relative names, so a namespace or a remap applies):
 
-- ``plan`` (nav_msgs/Path, reliable, transient_local, depth 1) in: the global
-  plan. Its key nodes become the APF sub-goals: the plan arrives smoothed,
+- ``plan`` (nav_msgs/Path; latched or volatile publishers, see
+  :class:`~fusion_planner.ros.qos.LatchedOrVolatile`) in: the global plan. Its key nodes become the APF sub-goals: the plan arrives smoothed,
   so they are recovered as the corners its arcs rounded
   (:func:`key_nodes_of`). An *empty* path means "no
   plan": the robot stops. The same plan again (a latched republish) keeps
   the controller's state.
-- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``, sensor-data QoS)
-  in: pose and measured velocity. The pose is moved ahead along the measured
-  velocity from its stamp to the control step
-  (:func:`~fusion_planner.ros.timed_pose.pose_at`), which
-  compensates the delay of a message that arrived a step late.
-- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
-  ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
-  points, placed in the map with the odometry pose of the scan's stamp.
-- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in:
-  tracked moving obstacles; velocities are estimated from successive
+- ``odom`` (nav_msgs/Odometry, header frame = ``odom_frame_id``, best
+  effort: reliable and best-effort publishers match) in: pose and measured
+  velocity. The robot is controlled in this frame (REP-105: smooth, but
+  drifting). The pose is moved ahead along the measured velocity from its
+  stamp to the control step (:func:`~fusion_planner.ros.timed_pose.pose_at`),
+  which compensates the delay of a message that arrived a step late.
+- ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, frame
+  ``frame_id``; latched or volatile publishers) in, unless the odometry is
+  already in ``frame_id``: the map -> odom correction, from the pose and
+  the odometry at the pose's stamp (:class:`~fusion_planner.ros.frames.Localization`).
+  Each plan (map frame) is brought into the odom frame with the correction
+  of its arrival; later corrections (the odometry's drift since) are applied
+  to the robot pose, scans and obstacles the controller sees, so the plan
+  and the controller's state stay put. Until the first pose the robot
+  stands still (``no_localization``).
+- ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
+  mounted at ``laser_x``, ``laser_y``, ``laser_yaw`` on the robot) in:
+  obstacle points, placed in the odom frame with the odometry pose of the
+  scan's stamp (:meth:`LocalPlannerNode._on_scan`, the one place where
+  obstacles come in).
+- ``map`` (nav_msgs/OccupancyGrid, latched or volatile publishers) in: the
+  known map the fusion controller replans on, with the obstacles it has
+  scanned, when it is stuck (:class:`~fusion_planner.core.local_planning.replanning.GridReplanner`,
+  as in the simulation); without a map it recovers without replanning.
+- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders,
+  ``frame_id``) in: tracked moving obstacles, brought into the odom frame; velocities are estimated from successive
   positions (:class:`~fusion_planner.ros.conversions.ObstacleTracker`).
 - ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
-  ``use_stamped_twist``) out, at ``control_rate`` on the node clock.
-- ``local_plan`` (nav_msgs/Path) out: the controller's short field rollout.
-- ``diagnostics`` out: controller status, arrival, failure with its reason,
+  ``enable_stamped_cmd_vel``, reliable) out, at ``control_rate`` on the node
+  clock while a plan is followed. A TwistStamped carries the stamp of the
+  odometry the step used (the sensor data it answers), so a simulator can
+  tell which step a command belongs to. Idle (no plan, or the plan ended:
+  arrived, failed, no path) the node publishes one zero command and then
+  nothing, so it does not fight a teleop or keep a twist_mux input alive;
+  ``publish_zero_when_idle`` keeps a zero command at ``control_rate``.
+- ``local_plan`` (nav_msgs/Path, ``frame_id``) out: the controller's
+  short field rollout.
+- ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) out, once per
+  plan whose run ended: ``reached``, ``no_path`` (replanning proved the goal
+  unreachable) or ``controller_failed``, with the plan's stamp
+  (:mod:`~fusion_planner.ros.goal_outcome`); also logged once and on
+  diagnostics as ``last_outcome``.
+- ``/diagnostics`` out: controller status, arrival, failure with its reason,
   stuck events, stale inputs, step timing.
 
 Safety policy (DESIGN.md, Errors): the command is exactly zero with no plan,
@@ -44,7 +72,7 @@ rate-limited log line and a diagnostics entry; the node never dies on a
 message.
 """
 
-import collections
+import functools
 import math
 import threading
 import time
@@ -52,30 +80,32 @@ from dataclasses import field as dataclass_field
 from dataclasses import fields, make_dataclass
 
 import numpy as np
-from geometry_msgs.msg import Twist, TwistStamped
-from nav_msgs.msg import Odometry, Path
-from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
+from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
-from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.global_planning.planner import PlannerConfig
+from fusion_planner.core.grid import DEFAULT_MAX_CELLS
+from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
-from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
+from fusion_planner.ros.goal_outcome import (
+    CONTROLLER_OUTCOME_TOPIC, OUTCOME_OF_STATUS, controller_outcome_msg)
+from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
+from fusion_planner.ros import frames
+from fusion_planner.ros.frames import Localization
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'local_planner'
 
-#: QoS of ``plan``: the global planner's latched profile.
-PLAN_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: Queue depth of ``cmd_vel`` (reliable) [messages].
-CMD_VEL_DEPTH = 10
-#: Queue depth of ``local_plan`` and ``obstacles`` [messages].
-DEFAULT_DEPTH = 10
 #: Prefix of the parameters that fill :class:`~fusion_planner.core.local_planning.apf.ApfParams`.
 APF_PREFIX = 'apf_'
 #: A node-clock step backwards larger than this [s] is a clock reset.
@@ -84,15 +114,25 @@ CLOCK_JUMP_TOLERANCE_S = 1e-3
 DEFAULT_KEY_NODE_MIN_TURN_RAD = 0.01
 #: Sine of the angle under which two segments count as parallel [1].
 PARALLEL_SINE = 1e-6
-#: Odometry messages remembered to place scans at their own time [1].
-ODOM_HISTORY = 64
 #: Statuses after which the command is exactly zero.
 STOPPED_STATUSES = ('arrived', 'failed', 'no_path')
 
 #: The node's own parameters: ``(name, default, description, range, read_only, choices)``.
 NODE_PARAMETERS = (
-    ('frame_id', 'map', 'frame of the plan, odometry and obstacles', None, True, ()),
-    ('robot_frame_id', 'base_link', 'robot frame: frame of the scan and of a TwistStamped command',
+    ('frame_id', 'map', 'map frame: of the plan, map, amcl_pose and obstacles', None, True, ()),
+    ('odom_frame_id', 'odom', 'frame of the odometry, in which the robot is controlled; equal '
+     'to frame_id: odometry already in the map frame, no amcl_pose needed', None, True, ()),
+    ('laser_frame_id', 'base_link', 'frame of the scan', None, True, ()),
+    ('use_tf', False, 'take map -> odom and the laser pose from TF (needs tf2_ros, a full ROS '
+     'install) instead of amcl_pose and the laser_* parameters', None, True, ()),
+    ('laser_x', 0.0, 'laser position ahead of the robot centre, robot frame [m]',
+     float_range(-10.0, 10.0), True, ()),
+    ('laser_y', 0.0, 'laser position left of the robot centre, robot frame [m]',
+     float_range(-10.0, 10.0), True, ()),
+    ('laser_yaw', 0.0, 'laser heading in the robot frame [rad]',
+     float_range(-math.pi, math.pi), True, ()),
+    ('robot_frame_id', 'base_link', 'robot frame: child of the odometry, frame of a TwistStamped '
+     'command',
      None, True, ()),
     ('controller', 'fusion',
      "local controller: 'fusion' (A* key nodes + improved APF, the paper's method), "
@@ -100,8 +140,14 @@ NODE_PARAMETERS = (
     ('control_rate', 20.0,
      'rate of cmd_vel on the node clock; the follower period is its inverse [Hz]',
      float_range(1.0, 200.0), False, ()),
-    ('use_stamped_twist', False, 'publish geometry_msgs/TwistStamped instead of Twist on cmd_vel',
+    ('enable_stamped_cmd_vel', False,
+     "publish geometry_msgs/TwistStamped instead of Twist on cmd_vel (Nav2's name)",
      None, True, ()),
+    ('use_stamped_twist', False, 'deprecated alias of enable_stamped_cmd_vel: true also '
+     'enables it (with a warning)', None, True, ()),
+    ('publish_zero_when_idle', False,
+     'keep publishing a zero cmd_vel at control_rate while idle (no plan, or the plan ended); '
+     'false: one zero command, then silence', None, False, ()),
     ('odom_timeout', 0.5, 'older odometry stops the robot [s]', float_range(0.01, 60.0), False, ()),
     ('scan_timeout', 0.5, 'an older scan is stale (see on_stale_scan) [s]',
      float_range(0.01, 60.0), False, ()),
@@ -117,9 +163,12 @@ NODE_PARAMETERS = (
      'long; 0 disables [s]', float_range(0.0, 600.0), False, ()),
     ('obstacle_timeout', conv.DEFAULT_OBSTACLE_TIMEOUT_S,
      'forget a tracked obstacle not seen for this long [s]', float_range(0.01, 60.0), True, ()),
+    ('max_map_cells', DEFAULT_MAX_CELLS, 'maps with more cells are refused [cells]',
+     int_range(1, 400_000_000), True, ()),
     ('diagnostics_period', 1.0,
      'period of the diagnostics heartbeat on the node clock; 0: events only [s]',
      float_range(0.0, 60.0), True, ()),
+    ('autostart', True, AUTOSTART_DESCRIPTION, None, True, ()),
 )
 
 #: Description and range of each :class:`~fusion_planner.core.local_planning.follow.FollowerParams`
@@ -320,8 +369,12 @@ def _corner(pts, first, last):
     return corner
 
 
-class LocalPlannerNode(Node):
+class LocalPlannerNode(ManagedNode):
     """The local planner node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    it commands only while active; deactivating it sends one zero command
+    and then nothing.
 
     Parameters
     ----------
@@ -342,8 +395,10 @@ class LocalPlannerNode(Node):
     thread.
     """
 
-    def __init__(self, node_name=NODE_NAME, **kwargs):
+    def __init__(self, node_name=NODE_NAME, tf_buffer=None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self._tf_buffer = tf_buffer  # with use_tf: this buffer instead of a tf2_ros one
+        self._tf = None
         self._lock = threading.RLock()
         self._params = ParameterHandler(self, LocalPlannerParams, PARAMETER_SPECS,
                                         on_change=self._on_parameters_changed)
@@ -351,12 +406,32 @@ class LocalPlannerNode(Node):
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
-        self._controller = follow.make_controller(params.controller, params.follower_params())
+        self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
+        if params.use_stamped_twist:
+            self.get_logger().warning('use_stamped_twist is deprecated: '
+                                      'set enable_stamped_cmd_vel instead')
+        self._timer = None
+        self._reset_state()
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def _reset_state(self):
+        """Forget every input and the controller's state."""
+        params = self._params.current
+        self._replanner = None     # GridReplanner on the latest map
+        self._controller = follow.make_controller(params.controller, params.follower_params(),
+                                                  replan=self._replan)
         self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
-        self._plan = None          # (N, 2) path being followed [m]
+        self._plan_map = None      # (N, 2) the plan as received, map frame [m]
+        self._plan = None          # (N, 2) that plan in the odom frame, being followed [m]
+        self._plan_correction = None  # the map -> odom correction it was brought over with
+        self._localization = Localization(params.odom_timeout,
+                                          same_frame=params.odom_frame_id == params.frame_id)
+        self._plan_stamp_ns = 0    # header stamp of that plan [ns]
+        self._outcome_sent = False  # the run of that plan ended and was reported
         self._odom = None          # latest Odometry as (stamp [s], pose (3,), velocity (2,))
         self._odom_received = None  # node-clock time it arrived [s]
-        self._odom_history = collections.deque(maxlen=ODOM_HISTORY)  # (stamp, pose, velocity)
+        self._odom_stamp = None    # its header stamp
         self._scan = None          # (points (M, 2), receive time [s])
         self._last_tick = None     # node-clock time of the last control step [s]
         self._plan_orphaned_since = None  # node-clock time the plan's publisher vanished [s]
@@ -365,23 +440,52 @@ class LocalPlannerNode(Node):
         self._stuck_events = 0
         self._step_ms_max = 0.0
         self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
+        self._idle_stop_sent = False  # the one zero command of an idle spell went out
 
+    def configure(self):
+        """Fresh state; the publishers, subscriptions and the control timer."""
+        with self._lock:
+            self._reset_state()
+        params = self._params.current
+        if params.use_tf:
+            self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
+                else frames.make_tf_source(self)
         guard = self._diagnostics.guard
-        twist_type = TwistStamped if params.use_stamped_twist else Twist
-        self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', CMD_VEL_DEPTH)
-        self._local_plan_pub = self.create_publisher(Path, 'local_plan', DEFAULT_DEPTH)
-        self._plan_sub = self.create_subscription(Path, 'plan', guard('plan', self._on_plan),
-                                                  PLAN_QOS)
+        twist_type = TwistStamped if self._stamped else Twist
+        self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
+        self._local_plan_pub = self.create_lifecycle_publisher(Path, 'local_plan', RELIABLE_QOS)
+        self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
+                                           ReliabilityPolicy.RELIABLE)
         self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
-                                 qos_profile_sensor_data)
+                                 ANY_PUBLISHER_QOS)
         self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
-                                 qos_profile_sensor_data)
+                                 ANY_PUBLISHER_QOS)
         self.create_subscription(MarkerArray, 'obstacles', guard('obstacles', self._on_obstacles),
-                                 DEFAULT_DEPTH)
+                                 RELIABLE_QOS)
+        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
+                                          ReliabilityPolicy.RELIABLE)
+        if not self._localization.same_frame and self._tf is None:
+            self._pose_sub = LatchedOrVolatile(
+                self, PoseWithCovarianceStamped, 'amcl_pose',
+                guard('amcl_pose', self._on_localization), ReliabilityPolicy.BEST_EFFORT)
+        self._outcome_pub = self.create_lifecycle_publisher(
+            DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC, RELIABLE_QOS)
         self._timer = self.create_timer(1.0 / params.control_rate,
                                         guard('control', self._on_timer, on_error=self._on_fault))
         self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
                                  stuck_events=0, controller=params.controller)
+
+    def deactivate(self):
+        """Stop the robot with one zero command before the publishers go quiet."""
+        with self._lock:
+            self._publish_command(0.0, 0.0)
+            self._idle_stop_sent = True
+        self._update(WARN, 'inactive', status='inactive')
+
+    def cleanup(self):
+        """The timer went with the other entities; the TF listener goes too."""
+        self._timer = None
+        self._tf = None
 
     # -- inputs ---------------------------------------------------------------
 
@@ -390,40 +494,115 @@ class LocalPlannerNode(Node):
         path = conv.plan_from_msg(msg, self._frame_id, 'plan')
         with self._lock:
             if path is None:
-                if self._plan is not None:
+                if self._plan_map is not None:
                     self.get_logger().info('empty plan received: stopping')
                 self._drop_plan()
                 return
-            if self._plan is not None and self._plan.shape == path.shape \
-                    and np.array_equal(self._plan, path):
+            if self._plan_map is not None and self._plan_map.shape == path.shape \
+                    and np.array_equal(self._plan_map, path):
                 return  # the same plan again (a latched republish): keep the state
-            min_turn = self._params.current.key_node_min_turn
-            self._controller.set_path(path, key_nodes_of(path, min_turn))
-            self._plan = path
+            self._plan_map = path
+            self._plan = None
+            self._bring_plan_over()
+            self._plan_stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
+            self._outcome_sent = False
             self._plan_orphaned_since = None
             self._status = None
             self.get_logger().info(
                 f'new plan of {len(path)} points to ({path[-1, 0]:.2f}, {path[-1, 1]:.2f})')
 
+    def _on_map(self, msg):
+        """Replan on this map from now on (unknown cells count as obstacles)."""
+        params = self._params.current
+        grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
+                                               max_cells=params.max_map_cells)
+        config = PlannerConfig(robot_radius=params.robot_radius)
+        with self._lock:
+            self._replanner = GridReplanner(grid, config)
+
+    def _replan(self, start, goal, obstacle_points):
+        """The controller's replanner: the map plus the scanned obstacles (see GridReplanner).
+
+        The controller works in the plan's frame (odom as corrected when the
+        plan arrived), the map is in the map frame: the request and the new
+        plan go through that correction.
+        """
+        correction = self._plan_correction
+        if self._replanner is None or correction is None:
+            raise NoValidPathCouldBeFound('no map or no localization received: cannot replan')
+        to_map = functools.partial(frames.transform_points, correction)
+        to_odom = functools.partial(frames.transform_points, frames.inverse(correction))
+        path, key_nodes = self._replanner(to_map(start)[0], to_map(goal)[0],
+                                          to_map(obstacle_points))
+        return to_odom(path), to_odom(key_nodes)
+
     def _on_odometry(self, msg):
-        pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
+        params = self._params.current
+        pose = conv.odometry_to_xy_yaw(msg, params.odom_frame_id, 'odometry')
         velocity = conv.odometry_to_velocity(msg, 'odometry')
         stamp = conv.stamp_to_seconds(msg.header.stamp)
         with self._lock:
             self._odom = (stamp, np.array(pose), np.array(velocity))
+            self._odom_stamp = msg.header.stamp  # exact, for a TwistStamped answering it
             self._odom_received = self._now_s()
-            self._odom_history.append(self._odom)
+            self._localization.add_odometry(*self._odom)
+
+    def _on_localization(self, msg):
+        """A map-frame pose: the map -> odom correction at its stamp."""
+        pose = conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose')
+        with self._lock:
+            if self._localization.add_localization(conv.stamp_to_seconds(msg.header.stamp), pose):
+                self._bring_plan_over()
+
+    def _bring_plan_over(self):
+        """Bring a new map plan into the odom frame with the current correction.
+
+        The controller keeps this frame (the odom frame as corrected when the
+        plan arrived) for the whole plan: a later correction moves the robot
+        pose, scans and obstacles it is given (:meth:`_to_plan_frame`), never
+        the plan, so the controller's progress and escape state carry on.
+        """
+        correction = self._localization.map_from_odom
+        if self._plan_map is None or self._plan is not None or correction is None:
+            return
+        self._plan_correction = correction
+        self._plan = frames.transform_points(frames.inverse(correction), self._plan_map)
+        self._controller.set_path(
+            self._plan, key_nodes_of(self._plan, self._params.current.key_node_min_turn))
+
+    def _correction_from_tf(self, params):
+        """With ``use_tf``: the latest map -> odom from TF instead of amcl_pose."""
+        correction = self._tf.planar(self._frame_id, params.odom_frame_id)
+        if correction is not None:
+            self._localization.map_from_odom = correction
+            self._bring_plan_over()
+
+    def _to_plan_frame(self):
+        """The transform from the odom frame now to the plan's frame (identity without drift).
+
+        ``inverse(correction at the plan) o correction now``: what odometry
+        drifted since the plan was brought over.
+        """
+        return frames.compose(frames.inverse(self._plan_correction),
+                              self._localization.map_from_odom)
 
     def _on_scan(self, msg):
+        """Scan returns as obstacle points in the odom frame (the one place obstacles come in)."""
+        params = self._params.current
         with self._lock:
             if self._odom is None:
                 return  # cannot place the beams before the first pose
             stamp = conv.stamp_to_seconds(msg.header.stamp)
             if stamp > 0:
-                pose = pose_at(self._odom_history, stamp, self._params.current.odom_timeout)
+                pose = self._localization.odom_pose_at(stamp)
             else:  # an unstamped scan: take it as current
                 pose = self._odom[1]
-            points = conv.scan_to_points(msg, tuple(pose), self._robot_frame_id, 'scan')
+            frame, mount = params.laser_frame_id, (params.laser_x, params.laser_y, params.laser_yaw)
+            if self._tf is not None:
+                frame = msg.header.frame_id
+                mount = self._tf.scan_pose(params.robot_frame_id, frame)
+            laser = frames.compose(pose, mount)
+            points = conv.scan_to_points(msg, tuple(laser), frame, 'scan')
             self._scan = (points, self._now_s())
 
     def _on_obstacles(self, msg):
@@ -438,14 +617,15 @@ class LocalPlannerNode(Node):
         """Apply an accepted run-time parameter change."""
         with self._lock:
             if new.controller != old.controller or new.key_node_min_turn != old.key_node_min_turn:
-                self._controller = follow.make_controller(new.controller, new.follower_params())
+                self._controller = follow.make_controller(new.controller, new.follower_params(),
+                                                          replan=self._replan)
                 if self._plan is not None:
                     self._controller.set_path(self._plan,
                                               key_nodes_of(self._plan, new.key_node_min_turn))
                 self._status = None
             else:
                 self._controller.params = new.follower_params()
-            if new.control_rate != old.control_rate:
+            if new.control_rate != old.control_rate and self._timer is not None:
                 self.destroy_timer(self._timer)
                 self._timer = self.create_timer(
                     1.0 / new.control_rate,
@@ -459,6 +639,8 @@ class LocalPlannerNode(Node):
 
     def _on_timer(self):
         """One control step: check inputs, run the controller, publish."""
+        if not self.active:
+            return
         started = time.perf_counter()
         with self._lock:
             now = self._now_s()
@@ -466,18 +648,22 @@ class LocalPlannerNode(Node):
             if self._last_tick is not None and now < self._last_tick - CLOCK_JUMP_TOLERANCE_S:
                 self._on_clock_reset(now)
             self._last_tick = now
+            if self._tf is not None:
+                self._correction_from_tf(params)
             stop_reason = self._stop_reason(now, params)
             if stop_reason is not None:
                 status, message = stop_reason
-                self._publish_command(0.0, 0.0)
+                self._publish_command(0.0, 0.0, idle=self._plan_map is None)
                 self._report(status, message, WARN if status != 'no_path' else OK)
                 return
-            pose = pose_at((self._odom,), now, params.odom_timeout)
+            drift = self._to_plan_frame()
+            pose = frames.compose(drift, pose_at((self._odom,), now, params.odom_timeout))
             velocity = self._odom[2]
             scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
-            points = np.zeros((0, 2)) if self._scan is None else self._scan[0]
+            points = np.zeros((0, 2)) if self._scan is None \
+                else frames.transform_points(drift, self._scan[0])
             obs = follow.Observation(pose=pose, velocity=velocity, obstacle_points=points,
-                                     tracked=self._tracker.obstacles(now), time=now)
+                                     tracked=self._tracked_in_plan_frame(now), time=now)
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
             # measured velocity, which an odometry glitch can put beyond them.
@@ -487,11 +673,12 @@ class LocalPlannerNode(Node):
                 v = omega = 0.0
             elif scan_stale:
                 v = min(v, params.stale_scan_speed)
-            self._publish_command(v, omega)
+            self._publish_command(v, omega, idle=command.status in STOPPED_STATUSES)
             if command.local_plan is not None and len(command.local_plan) \
                     and self._local_plan_pub.get_subscription_count() > 0:
-                self._local_plan_pub.publish(
-                    conv.path_to_msg(command.local_plan, self._frame_id, self._stamp()))
+                self._local_plan_pub.publish(conv.path_to_msg(
+                    frames.transform_points(self._plan_correction, command.local_plan),
+                    self._frame_id, self._stamp()))
             step_ms = (time.perf_counter() - started) * 1e3
             self._step_ms_max = max(self._step_ms_max, step_ms)
             self._report_command(command, pose, step_ms, scan_stale)
@@ -499,7 +686,7 @@ class LocalPlannerNode(Node):
 
     def _stop_reason(self, now, params):
         """``(status, sentence)`` when the robot must stand still, else None."""
-        if self._plan is not None and params.plan_timeout > 0:
+        if self._plan_map is not None and params.plan_timeout > 0:
             if self._plan_sub.get_publisher_count() > 0:
                 self._plan_orphaned_since = None
             elif self._plan_orphaned_since is None:
@@ -509,10 +696,13 @@ class LocalPlannerNode(Node):
                     f'the plan publisher has been gone for more than {params.plan_timeout:g} s: '
                     'dropping the plan')
                 self._drop_plan()
-        if self._plan is None:
+        if self._plan_map is None:
             return 'no_path', 'no plan: standing still'
         if self._odom is None:
             return 'stale_odom', 'no odometry received: standing still'
+        if self._plan is None:
+            return 'no_localization', ('no localization pose (amcl_pose) yet: cannot bring the '
+                                       'plan into the odom frame; standing still')
         age = now - self._odom_received
         if age > params.odom_timeout:
             return 'stale_odom', (f'odometry is {age:.2f} s old '
@@ -532,7 +722,8 @@ class LocalPlannerNode(Node):
             f'clock jumped back from {self._last_tick:.3f} s to {now:.3f} s: '
             'waiting for fresh data')
         self._odom = None
-        self._odom_history.clear()
+        self._localization.clear()
+        self._plan = None  # brought over again with the next correction
         self._scan = None
         self._tracker.clear()
         self._plan_orphaned_since = None
@@ -544,7 +735,18 @@ class LocalPlannerNode(Node):
         except Exception as err:  # noqa: BLE001 - last line of defence, never raise
             self.get_logger().error(f'could not publish the stop command: {err}')
 
+    def _tracked_in_plan_frame(self, now):
+        """The tracked obstacles (map frame) in the plan's frame: ``(K, 5)`` x, y, vx, vy, r."""
+        tracked = self._tracker.obstacles(now)
+        if len(tracked) and not self._localization.same_frame:
+            to_odom = frames.inverse(self._plan_correction)
+            tracked = tracked.copy()
+            tracked[:, 0:2] = frames.transform_points(to_odom, tracked[:, 0:2])
+            tracked[:, 2:4] = frames.rotate_vectors(to_odom[2], tracked[:, 2:4])
+        return tracked
+
     def _drop_plan(self):
+        self._plan_map = None
         self._plan = None
         self._plan_orphaned_since = None
         self._controller.reset()
@@ -552,9 +754,14 @@ class LocalPlannerNode(Node):
 
     # -- outputs --------------------------------------------------------------
 
-    def _publish_command(self, v, omega):
-        if self._params.current.use_stamped_twist:
-            msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, self._stamp())
+    def _publish_command(self, v, omega, idle=False):
+        """Publish a command; idle, only the first zero unless ``publish_zero_when_idle``."""
+        if idle and self._idle_stop_sent and not self._params.current.publish_zero_when_idle:
+            return
+        self._idle_stop_sent = idle
+        if self._stamped:
+            stamp = self._odom_stamp if self._odom is not None else self._stamp()
+            msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, stamp)
         else:
             msg = conv.velocity_to_twist(v, omega)
         self._cmd_pub.publish(msg)
@@ -578,20 +785,31 @@ class LocalPlannerNode(Node):
         values = dict(status=status, arrived=status == 'arrived', stuck_events=stuck,
                       controller=self._params.current.controller,
                       distance_to_goal_m=distance, step_ms=step_ms, step_ms_max=self._step_ms_max)
+        if status in OUTCOME_OF_STATUS:
+            self._publish_outcome(OUTCOME_OF_STATUS[status], command.reason)
         if status == 'arrived':
             self.get_logger().info(f'arrived at ({pose[0]:.2f}, {pose[1]:.2f}), '
                                    f'{distance:.3f} m from the goal')
             self._diagnostics.succeeded('arrived at the goal', last_error='', **values)
-            self._level, self._message = OK, 'arrived at the goal'
-        elif status == 'failed':
-            self.get_logger().error(f'local planner failed: {command.reason}')
-            self._update(ERROR, f'failed: {command.reason}', last_outcome='failed',
+            self._update(OK, 'arrived at the goal', last_outcome='reached')
+        elif status in ('failed', 'no_path'):
+            outcome = OUTCOME_OF_STATUS[status]
+            self.get_logger().error(f'local planner ended: {outcome}: {command.reason}')
+            self._update(ERROR, f'{outcome}: {command.reason}', last_outcome=outcome,
                          last_error=command.reason, **values)
         elif status == 'slow_stale_scan':
             self._update(WARN, 'scan is stale: slowing down', **values)
         else:
             self._update(OK if status == 'moving' else WARN, status, **values)
         self._status = status
+
+    def _publish_outcome(self, outcome, reason):
+        """Tell the global planner, once per plan, how its run ended."""
+        if self._outcome_sent:
+            return
+        self._outcome_sent = True
+        self._outcome_pub.publish(controller_outcome_msg(
+            outcome, self._plan_stamp_ns, reason, self.get_fully_qualified_name()))
 
     def _report(self, status, message, level):
         """Diagnostics (and a log line for a stop) once per status change."""

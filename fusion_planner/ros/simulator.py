@@ -24,8 +24,22 @@ Topics (relative names, so a namespace or a remap applies):
 
 - ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local) out, once:
   the **known** map, without the scenario's unknown obstacles.
-- ``odom`` (nav_msgs/Odometry, sensor-data QoS) out, every step: the true
-  pose in ``frame_id`` (child ``robot_frame_id``) and the applied velocity.
+- ``odom`` (nav_msgs/Odometry, reliable) out, every step: wheel odometry
+  in ``odom_frame_id`` (child ``robot_frame_id``), starting at the origin
+  where the robot stands and drifting from the truth by
+  ``odom_scale_error`` of the distance and ``odom_yaw_drift`` of heading
+  per metre (:class:`~fusion_planner.ros.robot_sensors.DriftingOdometry`;
+  both 0: exact), with the measured velocity.
+- ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, reliable,
+  transient local, as AMCL publishes it) out at ``localization_rate``: the
+  true pose in ``frame_id`` plus Gaussian noise (``localization_noise``,
+  ``localization_yaw_noise``), with that covariance.
+- ``ground_truth`` (nav_msgs/Odometry, reliable) out, every step: the true
+  pose and velocity in ``frame_id``, for tests, metrics and recordings.
+- ``/tf`` (tf2_msgs/TFMessage) out when tf2_msgs is importable (a full ROS
+  install): ``odom_frame_id`` -> ``robot_frame_id`` every step and
+  ``frame_id`` -> ``odom_frame_id`` (the localizer's estimate) with each
+  ``amcl_pose``.
 - ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame
   ``robot_frame_id``) out at ``scan_rate``: the world's ray-cast scan
   (REP-117: ``+inf`` no return, ``-inf`` too close).
@@ -35,10 +49,17 @@ Topics (relative names, so a namespace or a remap applies):
   name is relative: under a namespace it is ``<ns>/clock``, and the nodes
   that run on it need ``-r /clock:=clock`` (rclpy's time source listens on
   ``/clock``), so two simulated robots keep two clocks apart.
-- ``cmd_vel`` (geometry_msgs/Twist, reliable) in: applied until a newer
-  one arrives or it is older than ``cmd_timeout`` (then the robot stops). A
-  command with a NaN, infinite or huge value is refused and the robot stops.
-- ``plan`` (nav_msgs/Path, latched) in, as a signal only: a plan answers the
+- ``cmd_vel`` (geometry_msgs/Twist or TwistStamped, reliable) in: applied until a newer one arrives or
+  it is older than ``cmd_timeout`` (then the robot stops). A command with a
+  NaN, infinite or huge value is refused and the robot stops. One topic
+  carries one type: the node starts with TwistStamped under
+  ``enable_stamped_cmd_vel`` (Twist otherwise), then follows the type of the
+  publishers it finds on ``cmd_vel`` in other processes (checked every
+  :data:`CMD_VEL_TYPE_CHECK_PERIOD_S` of wall time), so a controller with or
+  without stamped commands drives it alike. (In one process DDS refuses a
+  publisher whose type differs from a subscription's on the same topic: set
+  the parameter alike on both nodes there.)
+- ``plan`` (nav_msgs/Path, latched or volatile publishers) in, as a signal only: a plan answers the
   goal, and the first non-empty one starts a world held by ``start_paused``;
   a malformed one (wrong frame, NaN points) is refused.
 - ``goal_pose`` (geometry_msgs/PoseStamped) out with ``publish_goal``: the
@@ -57,14 +78,19 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped, Twist
+from geometry_msgs.msg import (
+    PoseStamped, PoseWithCovarianceStamped, TransformStamped, Twist, TwistStamped)
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
+
+try:  # a full ROS install has tf2_msgs; the wheels do not
+    from tf2_msgs.msg import TFMessage
+except ImportError:
+    TFMessage = None
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.scenario import load_scenario
@@ -72,6 +98,11 @@ from fusion_planner.core.simulation.world import World
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.frames import map_from_odom
+from fusion_planner.ros.robot_sensors import DriftingOdometry, NoisyLocalizer
+from fusion_planner.ros.qos import (
+    LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS, LatchedOrVolatile)
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'simulator'
@@ -79,15 +110,10 @@ PACKAGE = 'fusion_planner'
 #: The bundled scenario, relative to the package's share folder.
 DEMO_SCENARIO = pathlib.Path('config') / 'scenarios' / 'demo.yaml'
 
-#: QoS of ``map``: latched (a late joiner gets it).
-LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: QoS of ``plan`` (listened to only to confirm the goal was taken).
-PLAN_QOS = LATCHED_QOS
-#: QoS of ``goal_pose`` (as the global planner subscribes it).
-GOAL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-#: Queue depth of ``cmd_vel``, ``clock``, ``obstacles`` [messages].
-DEFAULT_DEPTH = 10
+#: Velocity command types ``cmd_vel`` may carry, by their ROS type name.
+CMD_VEL_TYPES = {'geometry_msgs/msg/Twist': Twist, 'geometry_msgs/msg/TwistStamped': TwistStamped}
+#: Wall period of the check of the type the ``cmd_vel`` publishers use [s].
+CMD_VEL_TYPE_CHECK_PERIOD_S = 0.25
 #: A command faster than this many times the robot's limits is refused [1].
 MAX_COMMAND_FACTOR = 10.0
 #: Wall period of the goal publisher's check [s].
@@ -115,7 +141,13 @@ class SimulatorParams:
 
     scenario: str = ''
     frame_id: str = 'map'
+    odom_frame_id: str = 'odom'
     robot_frame_id: str = 'base_link'
+    odom_scale_error: float = 0.03
+    odom_yaw_drift: float = 0.01
+    localization_rate: float = 5.0
+    localization_noise: float = 0.02
+    localization_yaw_noise: float = 0.01
     rate: float = 20.0
     real_time_factor: float = 1.0
     scan_rate: float = 10.0
@@ -124,7 +156,9 @@ class SimulatorParams:
     max_command_lag: float = 0.25
     publish_goal: bool = False
     start_paused: bool = False
+    enable_stamped_cmd_vel: bool = False
     diagnostics_period: float = 1.0
+    autostart: bool = True
 
     def __post_init__(self):
         if self.scan_rate > self.rate:
@@ -137,9 +171,23 @@ PARAMETER_SPECS = (
     ParameterSpec('scenario', '',
                   "scenario file (the core's YAML schema); '' loads the bundled "
                   'config/scenarios/demo.yaml', read_only=True),
-    ParameterSpec('frame_id', 'map', 'frame of the map, odometry and obstacles', read_only=True),
+    ParameterSpec('frame_id', 'map',
+                  'map frame: of the map, amcl_pose, ground_truth and obstacles', read_only=True),
+    ParameterSpec('odom_frame_id', 'odom', 'frame of the wheel odometry (REP-105 odom)',
+                  read_only=True),
     ParameterSpec('robot_frame_id', 'base_link', 'robot frame: child of odom, frame of the scan',
                   read_only=True),
+    ParameterSpec('odom_scale_error', 0.03,
+                  'odometry distance error per metre travelled; 0 with odom_yaw_drift 0: exact '
+                  'odometry [1]', float_range(-0.5, 0.5), read_only=True),
+    ParameterSpec('odom_yaw_drift', 0.01, 'odometry heading error gained per metre travelled '
+                  '[rad/m]', float_range(-1.0, 1.0), read_only=True),
+    ParameterSpec('localization_rate', 5.0, 'amcl_pose messages per simulated second [Hz]',
+                  float_range(0.1, 100.0), read_only=True),
+    ParameterSpec('localization_noise', 0.02, 'standard deviation of x and y of amcl_pose [m]',
+                  float_range(0.0, 10.0), read_only=True),
+    ParameterSpec('localization_yaw_noise', 0.01, 'standard deviation of the heading of '
+                  'amcl_pose [rad]', float_range(0.0, 3.0), read_only=True),
     ParameterSpec('rate', 20.0, 'integration steps per simulated second [Hz]',
                   float_range(1.0, 1000.0), read_only=True),
     ParameterSpec('real_time_factor', 1.0,
@@ -165,8 +213,12 @@ PARAMETER_SPECS = (
                   'hold the world at t = 0 (robot and moving obstacles still, sensors and clock '
                   'still published) until the first non-empty plan appears on plan, so every '
                   'run starts when the robot can move', read_only=True),
+    ParameterSpec('enable_stamped_cmd_vel', False,
+                  'subscribe cmd_vel as TwistStamped at start-up (Twist otherwise); either way the '
+                  'node then follows the type of the cmd_vel publishers it finds', read_only=True),
     ParameterSpec('diagnostics_period', 1.0, 'wall period of the diagnostics status [s]',
                   float_range(0.05, 60.0), read_only=True),
+    ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
 )
 
 
@@ -211,6 +263,18 @@ def default_scenario_path():
     return share_file(DEMO_SCENARIO)
 
 
+def odometry_msg(pose, velocity, frame_id, child_frame_id, stamp):
+    """A ``nav_msgs/Odometry`` of ``(x, y, yaw)`` in ``frame_id`` and ``(v, omega)``."""
+    msg = Odometry()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp
+    msg.child_frame_id = child_frame_id
+    msg.pose.pose = conv.xy_yaw_to_pose(pose)
+    msg.twist.twist.linear.x = float(velocity[0])
+    msg.twist.twist.angular.z = float(velocity[1])
+    return msg
+
+
 def scan_to_msg(scan, config, frame_id, stamp, scan_period):
     """A ``sensor_msgs/LaserScan`` of a world scan.
 
@@ -247,8 +311,12 @@ def scan_to_msg(scan, config, frame_id, stamp, scan_period):
     return msg
 
 
-class SimulatorNode(Node):
+class SimulatorNode(ManagedNode):
     """The simulator node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    configuring builds a fresh world from the scenario (loaded once, at
+    construction); the world steps only while active.
 
     Parameters
     ----------
@@ -285,12 +353,28 @@ class SimulatorNode(Node):
                 f'rate {params.rate:g} Hz lets the robot move more than its radius '
                 f'({s.robot.radius:g} m) in one step at {s.robot.max_speed:g} m/s: '
                 'contacts with thin walls could be missed; raise rate')
-        self.world = World(s.grid, s.robot, s.start, s.unknown_obstacles, s.moving_obstacles,
-                           s.scan, seed=s.seed)
+        self._scenario_path = path
         self._frame_id = params.frame_id
+        self._odom_frame_id = params.odom_frame_id
         self._robot_frame_id = params.robot_frame_id
         self._dt = 1.0 / params.rate
         self._goal = np.asarray(s.goal, dtype=float)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._step_timer = None
+        self._diagnostics = DiagnosticsReporter(self, 0.0)
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def configure(self):
+        """A fresh world; the publishers, subscriptions and timers."""
+        params = self._params.current
+        s = self.scenario
+        self.world = World(s.grid, s.robot, s.start, s.unknown_obstacles, s.moving_obstacles,
+                           s.scan, seed=s.seed)
+        self._odometry_model = DriftingOdometry(params.odom_scale_error, params.odom_yaw_drift)
+        self._localizer = NoisyLocalizer(params.localization_noise,
+                                         params.localization_yaw_noise, s.seed)
+        self._next_localization_time = 0.0
         self._command = (0.0, 0.0)
         self._command_time = -math.inf  # simulated time of the last command [s]
         self._commands_flow = False  # a controller is sending commands (see max_command_lag)
@@ -305,34 +389,50 @@ class SimulatorNode(Node):
         self._goal_sent_at = None    # wall time of the last send
         self._goal_matched_at = None
         self._goal_answered = False
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._paused = params.start_paused  # held at t = 0 until the first plan
         self._paused_published = -math.inf  # wall time of the last sensors while held [s]
 
-        self._diagnostics = DiagnosticsReporter(self, 0.0)
         guard = self._diagnostics.guard
-        self._map_pub = self.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
-        self._odom_pub = self.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
-        self._scan_pub = self.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
-        self._obstacles_pub = self.create_publisher(MarkerArray, 'obstacles', DEFAULT_DEPTH)
-        self._clock_pub = self.create_publisher(ClockMsg, 'clock', DEFAULT_DEPTH)
-        self._goal_pub = self.create_publisher(PoseStamped, 'goal_pose', GOAL_QOS)
-        self.create_subscription(Twist, 'cmd_vel', guard('cmd_vel', self._on_cmd_vel),
-                                 DEFAULT_DEPTH)
-        self.create_subscription(Path, 'plan', guard('plan', self._on_plan), PLAN_QOS)
+        publisher = self.create_lifecycle_publisher
+        self._map_pub = publisher(OccupancyGrid, 'map', LATCHED_QOS)
+        self._odom_pub = publisher(Odometry, 'odom', RELIABLE_QOS)
+        self._truth_pub = publisher(Odometry, 'ground_truth', RELIABLE_QOS)
+        self._localization_pub = publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED_QOS)
+        self._tf_pub = publisher(TFMessage, '/tf', RELIABLE_QOS) if TFMessage else None
+        self._scan_pub = publisher(LaserScan, 'scan', SENSOR_QOS)
+        self._obstacles_pub = publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
+        self._clock_pub = publisher(ClockMsg, 'clock', RELIABLE_QOS)
+        self._goal_pub = publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
+        self._cmd_vel_sub = self.create_subscription(
+            TwistStamped if params.enable_stamped_cmd_vel else Twist, 'cmd_vel',
+            guard('cmd_vel', self._on_cmd_vel), RELIABLE_QOS)
+        self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
+                                           ReliabilityPolicy.RELIABLE)
+        self.create_timer(CMD_VEL_TYPE_CHECK_PERIOD_S,
+                          guard('cmd_vel type', self._match_cmd_vel_type), clock=self._steady)
         self._step_timer = self._make_step_timer(params)
         self.create_timer(GOAL_CHECK_PERIOD_S, guard('goal', self._on_goal_timer),
                           clock=self._steady)
         self.create_timer(params.diagnostics_period, guard('status', self._publish_status),
                           clock=self._steady)
-
-        self._map_pub.publish(conv.grid_map_to_occupancy_grid(
-            s.grid, self._frame_id, conv.seconds_to_stamp(0.0)))
         self.get_logger().info(
-            f"scenario '{s.name}' loaded from {path}: map {s.grid.width} x {s.grid.height} cells, "
-            f'{len(s.unknown_obstacles)} unknown and {len(s.moving_obstacles)} moving obstacles, '
+            f"scenario '{s.name}' loaded from {self._scenario_path}: map {s.grid.width} x "
+            f'{s.grid.height} cells, {len(s.unknown_obstacles)} unknown and '
+            f'{len(s.moving_obstacles)} moving obstacles, '
             f'goal ({self._goal[0]:.2f}, {self._goal[1]:.2f})')
+
+    def activate(self):
+        """Publish the known map (latched) and start stepping."""
+        self._map_pub.publish(conv.grid_map_to_occupancy_grid(
+            self.scenario.grid, self._frame_id, conv.seconds_to_stamp(0.0)))
         self._diagnostics.update(OK, 'running', collisions=0)
+
+    def deactivate(self):
+        self._diagnostics.update(WARN, 'inactive: the world is held')
+
+    def cleanup(self):
+        """The timers went with the other entities."""
+        self._step_timer = None
 
     # -- inputs ---------------------------------------------------------------
 
@@ -354,6 +454,23 @@ class SimulatorNode(Node):
             raise
         self._command = (v, omega)
 
+    def _match_cmd_vel_type(self):
+        """Subscribe ``cmd_vel`` with the message type its publishers use."""
+        topic = self.resolve_topic_name('cmd_vel')
+        types = {info.topic_type for info in self.get_publishers_info_by_topic(topic)}
+        known = [CMD_VEL_TYPES[name] for name in sorted(types) if name in CMD_VEL_TYPES]
+        if len(known) != 1 or known[0] is self._cmd_vel_sub.msg_type:
+            if len(known) > 1:
+                self._diagnostics.log.warning(
+                    'cmd_vel/types', f'cmd_vel has Twist and TwistStamped publishers: '
+                                     f'listening to {self._cmd_vel_sub.msg_type.__name__} only')
+            return
+        self.destroy_subscription(self._cmd_vel_sub)
+        self._cmd_vel_sub = self.create_subscription(
+            known[0], 'cmd_vel', self._diagnostics.guard('cmd_vel', self._on_cmd_vel),
+            RELIABLE_QOS)
+        self.get_logger().info(f'cmd_vel is published as {known[0].__name__}: listening to that')
+
     def _on_plan(self, msg):
         """A plan answers the goal; the first non-empty one starts a paused world."""
         path = conv.plan_from_msg(msg, self._frame_id, 'plan')  # refuses one nobody can follow
@@ -364,7 +481,7 @@ class SimulatorNode(Node):
             self.get_logger().info('first plan received: the world starts moving')
 
     def _on_parameters_changed(self, old, new):
-        if new.real_time_factor != old.real_time_factor:
+        if new.real_time_factor != old.real_time_factor and self._step_timer is not None:
             self.destroy_timer(self._step_timer)
             self._step_timer = self._make_step_timer(new)
         self.get_logger().info(f'parameters changed: real_time_factor={new.real_time_factor:g}, '
@@ -381,6 +498,8 @@ class SimulatorNode(Node):
 
     def step(self):
         """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+        if not self.active:
+            return
         params = self._params.current
         world = self.world
         if self._paused:
@@ -395,7 +514,9 @@ class SimulatorNode(Node):
         if world.time - self._command_time > params.cmd_timeout:
             v = omega = 0.0
         before = world.pose[:2].copy()
-        if world.step(v, omega, self._dt):
+        contact = world.step(v, omega, self._dt)
+        self._odometry_model.step(world.velocity[0], world.velocity[1], self._dt)
+        if contact:
             self._diagnostics.update(
                 WARN, f'collision {world.contact_events} at t = {world.time:.2f} s, robot at '
                       f'({world.pose[0]:.2f}, {world.pose[1]:.2f})',
@@ -412,7 +533,19 @@ class SimulatorNode(Node):
         stamp = conv.seconds_to_stamp(world.time)
         # Sensors first, the clock last: a node whose timer wakes on the new
         # time has (most likely) already received the data of that time.
-        self._odom_pub.publish(self._odometry(stamp))
+        odometry = self._odometry_model
+        self._odom_pub.publish(odometry_msg(odometry.pose, odometry.velocity, self._odom_frame_id,
+                                            self._robot_frame_id, stamp))
+        self._truth_pub.publish(odometry_msg(world.pose, world.velocity, self._frame_id,
+                                             self._robot_frame_id, stamp))
+        transforms = [(self._odom_frame_id, odometry.pose)]
+        if world.time + TIME_EPS_S >= self._next_localization_time:
+            self._next_localization_time = world.time + 1.0 / params.localization_rate
+            estimate = self._localizer.estimate(world.pose)
+            self._localization_pub.publish(self._localization_msg(estimate, stamp))
+            transforms.append((self._frame_id, map_from_odom(estimate, odometry.pose)))
+        if self._tf_pub is not None:
+            self._tf_pub.publish(self._tf_msg(transforms, stamp))
         if force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
             period = 1.0 / params.scan_rate
             self._next_scan_time = world.time + period
@@ -443,24 +576,33 @@ class SimulatorNode(Node):
         self._waiting_since = None
         return False
 
-    def _odometry(self, stamp):
-        world = self.world
-        msg = Odometry()
+    def _localization_msg(self, pose, stamp):
+        msg = PoseWithCovarianceStamped()
         msg.header.frame_id = self._frame_id
         msg.header.stamp = stamp
-        msg.child_frame_id = self._robot_frame_id
-        msg.pose.pose.position.x = float(world.pose[0])
-        msg.pose.pose.position.y = float(world.pose[1])
-        msg.pose.pose.orientation = conv.quaternion_of_yaw(world.pose[2])
-        msg.twist.twist.linear.x = float(world.velocity[0])
-        msg.twist.twist.angular.z = float(world.velocity[1])
+        msg.pose.pose = conv.xy_yaw_to_pose(pose)
+        msg.pose.covariance = self._localizer.covariance()
+        return msg
+
+    def _tf_msg(self, transforms, stamp):
+        """TFMessage of ``(parent frame, (x, y, yaw))`` pairs: odom -> base_link, map -> odom."""
+        children = {self._odom_frame_id: self._robot_frame_id,
+                    self._frame_id: self._odom_frame_id}
+        msg = TFMessage()
+        for parent, (x, y, yaw) in transforms:
+            t = TransformStamped()
+            t.header.frame_id, t.header.stamp = parent, stamp
+            t.child_frame_id = children[parent]
+            t.transform.translation.x, t.transform.translation.y = float(x), float(y)
+            t.transform.rotation = conv.quaternion_of_yaw(yaw)
+            msg.transforms.append(t)
         return msg
 
     # -- goal and status ----------------------------------------------------------
 
     def _on_goal_timer(self):
         """Send the scenario's goal once the planner listens; re-send until a plan answers."""
-        if not self._params.current.publish_goal or self._goal_answered \
+        if not self.active or not self._params.current.publish_goal or self._goal_answered \
                 or self._goal_attempts >= MAX_GOAL_ATTEMPTS:
             return
         now = time.monotonic()
@@ -487,6 +629,8 @@ class SimulatorNode(Node):
 
     def _publish_status(self):
         """Diagnostics heartbeat: collisions, clearance, distances, achieved speed."""
+        if not self.active:
+            return  # the lifecycle transitions report themselves
         world = self.world
         wall, sim = time.monotonic(), world.time
         if wall > self._rtf_mark[0]:
