@@ -2,28 +2,36 @@
 
 Usage::
 
-    fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--json] [--plot PNG]
-        [--gif GIF]
-    fusion-planner sim --random N [--seed S] [--controller NAME ...] [--jobs J] [--json]
+    fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--perception MODE]
+        [--json] [--plot PNG] [--gif GIF]
+    fusion-planner sim --random N [--seed S] [--controller NAME ...] [--perception MODE ...]
+        [--jobs J] [--json]
 
 Contract:
 
 - ``NAME`` is one of ``fusion``, ``apf``, ``classic-apf``, ``astar-track``.
   A scenario runs ``fusion`` by default; a batch runs all four side by side
   unless ``--controller`` is given (it may be repeated).
+- ``MODE`` is what the controller is told about moving obstacles: ``scan``
+  (what a tracker makes of the simulated laser scans; hidden people are
+  unseen) or ``ideal`` (their true states). A scenario runs the file's
+  ``perception`` (default ``scan``); a batch runs both side by side unless
+  ``--perception`` is given (it may be repeated).
 - ``--seed`` overrides the scenario's world seed (random walks, scan noise);
   for ``--random`` it is the batch seed (default 0): the same seed gives the
   same scenarios and the same results.
 - ``--json`` prints one JSON object on stdout. A scenario: ``reached``,
   ``collisions``, ``time_s``, ``path_length_m``, ``min_clearance_m``,
   ``stuck_events``, ``failure`` (null or ``'<code>: <sentence>'``) plus
-  ``scenario``, ``controller``, ``seed``, ``plan_length_m`` and
-  ``moving_collisions`` (the contacts a moving obstacle began). A batch:
+  ``scenario``, ``controller``, ``perception``, ``seed``, ``plan_length_m``
+  and ``moving_collisions`` (the contacts a moving obstacle began). A batch:
   ``scenarios``, ``seed``, ``wall_time_s``, ``controllers`` (per controller:
   ``success_rate``, ``reached``, ``episodes``, ``collisions``,
   ``moving_collisions``, ``episodes_with_collisions``, ``mean_time_s``,
   ``path_length_over_optimal``, ``mean_min_clearance_m``,
-  ``stuck_events``, ``failures``) and ``episodes`` (one row per run).
+  ``stuck_events``, ``failures``) under the first perception,
+  ``by_perception`` (the same per perception, when there are several) and
+  ``episodes`` (one row per run).
 - ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6;
   ``--gif GIF`` (scenario only) writes it as an animation.
 - A batch reports its progress with an estimated time to completion on
@@ -40,6 +48,7 @@ import sys
 from fusion_planner.cli.progress import Progress
 from fusion_planner.core.errors import PlanningError
 from fusion_planner.core.simulation.episodes import CONTROLLERS
+from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 
 EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -57,6 +66,10 @@ def add_parser(subparsers):
     parser.add_argument('--controller', action='append', metavar='NAME',
                         help=f'one of {", ".join(CONTROLLERS)}; default fusion for a scenario, '
                              'all four for a batch; repeat to select several for a batch')
+    parser.add_argument('--perception', action='append', choices=PERCEPTION_MODES,
+                        help='what the controller knows of moving obstacles: scan (tracked from '
+                             'the laser) or ideal (true states); default the scenario\'s (scan), '
+                             'both for a batch; repeat to select both for a batch')
     parser.add_argument('--seed', type=_seed, metavar='N',
                         help='world seed of a scenario (default: the file\'s), batch seed (default 0)')
     parser.add_argument('--jobs', type=_count, default=1, metavar='J',
@@ -95,6 +108,8 @@ def _run(args):
             return _run_batch(args, controllers)
         if len(controllers) != 1:
             raise _BadInput('a scenario runs one controller; give --controller once')
+        if args.perception and len(args.perception) != 1:
+            raise _BadInput('a scenario runs one perception; give --perception once')
         return _run_scenario(args, controllers[0])
     except (_BadInput, PlanningError) as err:
         print(f'error: {_one_line(err)}', file=sys.stderr)
@@ -118,8 +133,9 @@ def _run_scenario(args, controller):
     from fusion_planner.core.simulation.episodes import run_episode
 
     scenario = load_scenario(args.scenario)
+    perception = args.perception[0] if args.perception else None
     result = run_episode(scenario, controller, seed=args.seed,
-                         record=bool(args.plot or args.gif))
+                         record=bool(args.plot or args.gif), perception=perception)
     if args.plot:
         try:
             from fusion_planner.cli.sim_plot import plot_episode
@@ -147,7 +163,7 @@ def _run_batch(args, controllers):
     reporter = Progress(args.random, 'sim', unit='scenarios')
     batch = run_batch(args.random, seed, controllers=controllers,
                       progress=lambda done, _total: reporter.advance(done - reporter.done),
-                      workers=args.jobs)
+                      workers=args.jobs, perceptions=args.perception or PERCEPTION_MODES)
     reporter.finish()
     if args.json:
         print(json.dumps(batch.as_dict()))
@@ -158,7 +174,8 @@ def _run_batch(args, controllers):
 
 def _episode_line(s):
     outcome = 'reached' if s['reached'] else f'NOT reached ({s["failure"]})'
-    return (f'{s["scenario"]} / {s["controller"]} (seed {s["seed"]}): {outcome}; '
+    return (f'{s["scenario"]} / {s["controller"]} / {s["perception"]} perception '
+            f'(seed {s["seed"]}): {outcome}; '
             f'time {s["time_s"]:.1f} s, path {s["path_length_m"]:.2f} m, '
             f'collisions {s["collisions"]}, min clearance {_num(s["min_clearance_m"], "m")}, '
             f'stuck events {s["stuck_events"]}')
@@ -169,12 +186,14 @@ def batch_table(batch):
     lines = [f'{batch.scenarios} random scenarios, seed {batch.seed}, '
              f'{batch.wall_time_s:.0f} s wall time',
              '',
-             '| controller | success | collisions (episodes; by moving obstacles) | '
+             '| controller | perception | success | collisions (episodes; by moving obstacles) | '
              'mean time [s] | path length / optimal | mean min clearance [m] | stuck events |',
-             '|---|---|---|---|---|---|---|']
-    for name, s in batch.controllers.items():
+             '|---|---|---|---|---|---|---|---|']
+    summaries = [s for by_name in batch.by_perception.values() for s in by_name.values()]
+    for s in summaries:
         lines.append(
-            f'| {name} | {100 * s.success_rate:.1f}% ({s.reached}/{s.episodes}) | '
+            f'| {s.controller} | {s.perception} | '
+            f'{100 * s.success_rate:.1f}% ({s.reached}/{s.episodes}) | '
             f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions}) | '
             f'{_num(s.mean_time_s)} | '
             f'{_num(s.path_length_over_optimal, digits=3)} | {_num(s.mean_min_clearance_m)} | '

@@ -10,6 +10,10 @@ the scenario's ``dt``::
     scan -> Observation(scan hit points, tracked obstacles) -> controller.compute
          -> world.step(v, omega)
 
+where the tracked obstacles are what the scan tracker makes of the scans
+(perception ``scan``) or the true moving obstacles (``ideal``; see
+:mod:`~fusion_planner.core.simulation.perception`)
+
 until the robot arrives (within the goal tolerance *and* the controller
 reports ``'arrived'``), the controller reports ``'failed'`` or
 ``'no_path'``, the contact-event limit is reached, or time runs out.
@@ -32,6 +36,7 @@ import numpy as np
 from fusion_planner.core.local_planning import follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.global_planning.planner import GlobalPlanner
+from fusion_planner.core.simulation.perception import PERCEPTION_MODES, check_mode, make_perception
 from fusion_planner.core.simulation.scenario import RandomScenarioConfig, random_scenario
 from fusion_planner.core.simulation.world import World
 
@@ -56,6 +61,9 @@ class EpisodeResult:
     controller : str
     seed : int
         Seed of the world (random walks, scan noise).
+    perception : str
+        What the controller was told of the moving obstacles (one of
+        :data:`PERCEPTION_MODES`).
     reached : bool
         Arrived within the goal tolerance with status ``'arrived'``.
     collisions : int
@@ -99,6 +107,7 @@ class EpisodeResult:
     min_clearance_m: float
     stuck_events: int
     moving_collisions: int = 0
+    perception: str = PERCEPTION_MODES[0]
     failure: str = None
     plan_length_m: float = None
     trajectory: np.ndarray = field(default=None, repr=False)
@@ -115,12 +124,13 @@ class EpisodeResult:
         dict
             ``reached``, ``collisions``, ``time_s``, ``path_length_m``,
             ``min_clearance_m``, ``stuck_events``, ``failure`` (None or a
-            reason), ``scenario``, ``controller``, ``seed``,
+            reason), ``scenario``, ``controller``, ``perception``, ``seed``,
             ``plan_length_m``, ``moving_collisions``.
         """
         return {
             'scenario': self.scenario,
             'controller': self.controller,
+            'perception': self.perception,
             'seed': self.seed,
             'reached': bool(self.reached),
             'collisions': int(self.collisions),
@@ -199,7 +209,7 @@ def optimal_length(scenario):
     return float(plan.metrics.length_m)
 
 
-def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
+def run_episode(scenario, controller_name, seed=None, record=True, plan=None, perception=None):
     """Run one controller on one scenario.
 
     Parameters
@@ -214,6 +224,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     plan : PlanResult, optional
         A plan already made on the known map (saves re-planning when several
         controllers run on the same scenario).
+    perception : str, optional
+        One of :data:`PERCEPTION_MODES`; default ``scenario.perception``.
 
     Returns
     -------
@@ -222,7 +234,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     Raises
     ------
     InvalidInput
-        Unknown controller name or invalid follower overrides.
+        Unknown controller name or perception, or invalid follower overrides.
 
     Examples
     --------
@@ -234,6 +246,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     if controller_name not in CONTROLLERS:
         raise InvalidInput(
             f'unknown controller {controller_name!r}; choose one of {", ".join(CONTROLLERS)}')
+    perception = scenario.perception if perception is None else perception
+    perceive = make_perception(perception, scenario.grid)
     params = follower_params(scenario)
     # Fusion may replan on the known map plus the obstacles it has seen when
     # its escape toward the next key node fails (see follow.GridReplanner).
@@ -253,7 +267,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
             LOGGER.info('%s: no global plan: %s', scenario.name, err)
             if controller_name in PLAN_FOLLOWERS:
                 return EpisodeResult(
-                    scenario=scenario.name, controller=controller_name, seed=seed, reached=False,
+                    scenario=scenario.name, controller=controller_name, seed=seed,
+                    perception=perception, reached=False,
                     collisions=0, time_s=0.0, path_length_m=0.0, min_clearance_m=math.nan,
                     stuck_events=0, failure=f'no_path: {err}')
     if plan is not None:
@@ -276,7 +291,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     for _ in range(max_steps):
         scan = world.scan()
         obs = follow.Observation(pose=world.pose.copy(), velocity=world.velocity.copy(),
-                                 obstacle_points=scan.points, tracked=world.tracked_obstacles(),
+                                 obstacle_points=scan.points, tracked=perceive.tracked(world, scan),
                                  time=world.time)
         command = controller.compute(obs)
         if record:
@@ -308,7 +323,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
         tracks.append(world.obstacle_positions())
     k = len(scenario.moving_obstacles)
     return EpisodeResult(
-        scenario=scenario.name, controller=controller_name, seed=seed, reached=reached,
+        scenario=scenario.name, controller=controller_name, seed=seed, perception=perception,
+        reached=reached,
         collisions=world.contact_events, time_s=world.time, path_length_m=path_length,
         min_clearance_m=min_clearance, stuck_events=int(getattr(controller, 'stuck_events', 0)),
         moving_collisions=world.moving_contact_events,
@@ -328,6 +344,8 @@ class ControllerSummary:
     Attributes
     ----------
     controller : str
+    perception : str
+        One of :data:`PERCEPTION_MODES`.
     episodes : int
     reached : int
     success_rate : float
@@ -350,6 +368,7 @@ class ControllerSummary:
     """
 
     controller: str
+    perception: str = PERCEPTION_MODES[0]
     episodes: int = 0
     reached: int = 0
     success_rate: float = 0.0
@@ -381,10 +400,13 @@ class BatchResult:
     scenarios : int
     seed : int
     controllers : dict of str to ControllerSummary
+        Under the first perception of the batch.
     episodes : list of dict
         :meth:`EpisodeResult.summary` of every episode plus
         ``optimal_length_m``.
     wall_time_s : float
+    by_perception : dict of str to dict of str to ControllerSummary
+        The summaries under every perception of the batch, first one first.
     """
 
     scenarios: int
@@ -392,16 +414,22 @@ class BatchResult:
     controllers: dict
     episodes: list
     wall_time_s: float
+    by_perception: dict = field(default_factory=dict)
 
     def as_dict(self):
-        """JSON-ready form."""
-        return {
+        """JSON-ready form; ``by_perception`` only when the batch compared perceptions."""
+        out = {
             'scenarios': self.scenarios,
             'seed': self.seed,
             'wall_time_s': round(self.wall_time_s, 2),
             'controllers': {name: s.as_dict() for name, s in self.controllers.items()},
             'episodes': self.episodes,
         }
+        if len(self.by_perception) > 1:
+            out['by_perception'] = {
+                mode: {name: s.as_dict() for name, s in summaries.items()}
+                for mode, summaries in self.by_perception.items()}
+        return out
 
 
 def batch_seeds(n, seed):
@@ -410,14 +438,14 @@ def batch_seeds(n, seed):
     return [int(child.generate_state(1)[0]) for child in children]
 
 
-def run_scenario_set(scenario_seed, controllers, config=None):
-    """Generate one random scenario and run every controller on it.
+def run_scenario_set(scenario_seed, controllers, config=None, perceptions=PERCEPTION_MODES[:1]):
+    """Generate one random scenario and run every controller on it under every perception.
 
     Returns
     -------
     list of dict
-        One :meth:`EpisodeResult.summary` per controller, each with
-        ``optimal_length_m``.
+        One :meth:`EpisodeResult.summary` per perception and controller,
+        each with ``optimal_length_m``.
     """
     scenario = random_scenario(scenario_seed, config)
     optimal = optimal_length(scenario)
@@ -426,15 +454,17 @@ def run_scenario_set(scenario_seed, controllers, config=None):
     except PlanningError:
         plan = None
     rows = []
-    for name in controllers:
-        result = run_episode(scenario, name, record=False, plan=plan)
-        row = result.summary()
-        row['optimal_length_m'] = None if optimal is None else round(optimal, 3)
-        rows.append(row)
+    for mode in perceptions:
+        for name in controllers:
+            result = run_episode(scenario, name, record=False, plan=plan, perception=mode)
+            row = result.summary()
+            row['optimal_length_m'] = None if optimal is None else round(optimal, 3)
+            rows.append(row)
     return rows
 
 
-def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, workers=1):
+def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, workers=1,
+              perceptions=PERCEPTION_MODES[:1]):
     """Run controllers side by side on ``n`` generated scenarios.
 
     Parameters
@@ -451,6 +481,9 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     workers : int
         Worker processes (1: run in this process). Results do not depend on
         it.
+    perceptions : sequence of str
+        Modes from :data:`PERCEPTION_MODES`; every controller runs under
+        each.
 
     Returns
     -------
@@ -459,7 +492,7 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     Raises
     ------
     InvalidInput
-        ``n < 1``, unknown controller or bad worker count.
+        ``n < 1``, unknown controller or perception, or bad worker count.
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise InvalidInput(f'the batch size must be a positive integer, got {n!r}')
@@ -469,33 +502,42 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     for name in controllers:
         if name not in CONTROLLERS:
             raise InvalidInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
+    perceptions = tuple(dict.fromkeys(perceptions))
+    if not perceptions:
+        raise InvalidInput('a batch needs at least one perception')
+    for mode in perceptions:
+        check_mode(mode)
     config = config or RandomScenarioConfig()
     seeds = batch_seeds(n, seed)
     t0 = time.perf_counter()
     per_scenario = [None] * n
     if workers == 1:
         for i, s in enumerate(seeds):
-            per_scenario[i] = run_scenario_set(s, controllers, config)
+            per_scenario[i] = run_scenario_set(s, controllers, config, perceptions)
             if progress is not None:
                 progress(i + 1, n)
     else:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_scenario_set, s, controllers, config): i
+            futures = {pool.submit(run_scenario_set, s, controllers, config, perceptions): i
                        for i, s in enumerate(seeds)}
             for done, future in enumerate(concurrent.futures.as_completed(futures), start=1):
                 per_scenario[futures[future]] = future.result()
                 if progress is not None:
                     progress(done, n)
     episodes = [row for rows in per_scenario for row in rows]
-    summaries = {name: summarise(name, [e for e in episodes if e['controller'] == name])
-                 for name in controllers}
-    return BatchResult(scenarios=n, seed=int(seed), controllers=summaries, episodes=episodes,
-                       wall_time_s=time.perf_counter() - t0)
+    by_perception = {
+        mode: {name: summarise(name, [e for e in episodes if e['controller'] == name
+                                      and e['perception'] == mode], mode)
+               for name in controllers}
+        for mode in perceptions}
+    return BatchResult(scenarios=n, seed=int(seed), controllers=by_perception[perceptions[0]],
+                       episodes=episodes, wall_time_s=time.perf_counter() - t0,
+                       by_perception=by_perception)
 
 
-def summarise(controller, rows):
-    """A :class:`ControllerSummary` from episode summary rows of one controller."""
-    out = ControllerSummary(controller=controller, episodes=len(rows))
+def summarise(controller, rows, perception=PERCEPTION_MODES[0]):
+    """A :class:`ControllerSummary` from episode summary rows of one controller and perception."""
+    out = ControllerSummary(controller=controller, perception=perception, episodes=len(rows))
     if not rows:
         return out
     ok = [r for r in rows if r['reached']]
