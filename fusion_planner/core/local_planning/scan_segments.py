@@ -33,10 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-#: The arc of a circle's visible half sits, on average over beams uniform in
-#: bearing, pi/4 of its radius in front of the centre (mean of cos over
-#: uniform sin): the centre lies that far behind the arc's mean point.
-ARC_DEPTH_FRACTION = math.pi / 4
+#: Cap on the sine of a run's half angle in the circle estimate (a run this
+#: wide is far larger than any tracked object anyway).
+MAX_HALF_ANGLE_SIN = 0.9
 
 
 @dataclass(frozen=True)
@@ -46,11 +45,9 @@ class Segments:
     Attributes
     ----------
     centers : ndarray, float64, shape (C, 2)
-        Estimated centres [m], map frame (the mean hit point pushed back
-        along the line of sight by :data:`ARC_DEPTH_FRACTION` of the radius).
+        Estimated centres [m], map frame.
     radii : ndarray, float64, shape (C,)
-        Half the distance between the first and last hit point plus half a
-        beam spacing [m].
+        Estimated radii [m].
     counts : ndarray, int64, shape (C,)
         Hit points per candidate.
     occluded : ndarray, bool, shape (C,)
@@ -165,6 +162,15 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
     Segments
         A full-circle scan joins a run that wraps past its last beam to the
         one at its first beam.
+
+    Notes
+    -----
+    Each run is taken for a circle: seen under the angle ``a`` of its
+    ``count`` beams (``count * beam spacing``) with its nearest return at
+    range ``rho``, a circle of radius ``r`` centred at range ``d`` has
+    ``sin(a / 2) = r / d`` and ``rho = d - r``, so
+    ``r = rho sin(a/2) / (1 - sin(a/2))``; its centre lies at ``rho + r``
+    along the bearing of the run's middle.
     """
     points, valid = hit_points(angles, ranges, origin)
     own = valid & ~explained_by_map(points, valid, grid, explained_mask)
@@ -192,15 +198,14 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
         count[0] += count[-1]
         first, last, count = first[:-1], last[:-1], count[:-1]
         label = np.where(label == len(first), 0, label)
-    sums = np.stack([np.bincount(label[own], weights=points[own, 0], minlength=len(first)),
-                     np.bincount(label[own], weights=points[own, 1], minlength=len(first))], axis=1)
-    mean = sums / count[:, None]
-    chord = np.hypot(*(points[last] - points[first]).T)
-    sight = mean - origin[:2]
-    distance = np.hypot(*sight.T)
-    radii = 0.5 * chord + 0.5 * distance * beam_spacing
-    direction = sight / np.maximum(distance, 1e-9)[:, None]
-    centers = mean + direction * (ARC_DEPTH_FRACTION * radii)[:, None]
+    nearest = np.full(len(first), np.inf)
+    np.minimum.at(nearest, label[own], ranges[own])
+    # the circle seen under the run's angle from its nearest return
+    half_sin = np.minimum(np.sin(0.5 * count * beam_spacing), MAX_HALF_ANGLE_SIN)
+    radii = nearest * half_sin / (1.0 - half_sin)
+    sight = 0.5 * (points[first] + points[last]) - origin[:2]
+    direction = sight / np.maximum(np.hypot(*sight.T), 1e-9)[:, None]
+    centers = origin[:2] + direction * (nearest + radii)[:, None]
     occluded = _nearer_beside(ranges, first - 1, first, gap, full_circle) \
         | _nearer_beside(ranges, last + 1, last, gap, full_circle)
     keep = count >= min_points

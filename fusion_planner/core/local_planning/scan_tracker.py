@@ -23,8 +23,9 @@ controller avoids (:attr:`Observation.tracked`):
 5. **Report**: only tracks that move. A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
    it was born (a static object's centre estimate shifts less as the view
-   changes), and its speed is at least ``min_speed``; it then stays moving
-   until it is dropped. Everything else
+   changes), and its speed is at least ``min_speed``; it stays moving until
+   its speed falls below half of that, and must then travel ``min_travel``
+   again. Everything else
    (static unknown obstacles, people standing still) stays scan points.
 
 Deterministic: the same scans give the same tracks (no randomness; ties in
@@ -109,6 +110,8 @@ class TrackerParams:
         Slowest speed [m/s] of a moving track.
     min_travel : float
         Distance [m] from its birth a track must have travelled to be moving.
+    radius_smoothing : float
+        Weight in (0, 1] of a new radius in a track's running mean.
     max_tracks : int
         Cap on live tracks; the candidates nearest the laser are kept.
     """
@@ -126,12 +129,13 @@ class TrackerParams:
     coast_time: float = 0.6
     min_speed: float = 0.1
     min_travel: float = 0.25
+    radius_smoothing: float = 0.3
     max_tracks: int = 100
 
     def __post_init__(self):
         for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
-                     'coast_time'):
+                     'coast_time', 'radius_smoothing'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool)
                     and math.isfinite(value) and value > 0):
@@ -176,7 +180,8 @@ class TrackReport:
     covariances : ndarray, float64, shape (K, 4, 4)
         Their covariances (same units, squared).
     radii : ndarray, float64, shape (K,)
-        [m].
+        [m]: a running mean of the radii of the whole (not partly hidden)
+        candidates matched to each track.
     """
 
     ids: np.ndarray
@@ -335,7 +340,8 @@ class ScanTracker:
         p = p - gain @ p[:, 0:2, :]
         self._x[tracks] = x
         self._p[tracks] = 0.5 * (p + np.swapaxes(p, 1, 2))
-        self._radius[tracks] = np.maximum(self._radius[tracks], radii)
+        weight = self.params.radius_smoothing
+        self._radius[tracks] += weight * (radii - self._radius[tracks])
         self._hits[tracks] += 1
         self._last_seen[tracks] = self.time
 
@@ -373,8 +379,11 @@ class ScanTracker:
         p = self.params
         speed = np.hypot(self._x[:, 2], self._x[:, 3])
         travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
-        moving = (self._hits >= p.confirm_hits) & (travelled >= p.min_travel) & (speed >= p.min_speed)
-        self._moving |= moving
+        starts = (self._hits >= p.confirm_hits) & (travelled >= p.min_travel) & (speed >= p.min_speed)
+        stops = self._moving & (speed < 0.5 * p.min_speed)
+        # a stopped track must travel min_travel again from where it stopped
+        self._birth[stops] = self._x[stops, 0:2]
+        self._moving = (self._moving & ~stops) | starts
 
     def _keep(self, mask):
         self._ids, self._x, self._p = self._ids[mask], self._x[mask], self._p[mask]
