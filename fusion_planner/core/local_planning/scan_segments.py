@@ -57,6 +57,8 @@ class Segments:
         biased.
     unexplained : ndarray, float64, shape (U, 2)
         Every hit point the map does not explain [m] (candidates or not).
+    labels : ndarray, int64, shape (U,)
+        The candidate of each of them (-1: in a run too short to be one).
     """
 
     centers: np.ndarray
@@ -64,6 +66,7 @@ class Segments:
     counts: np.ndarray
     occluded: np.ndarray
     unexplained: np.ndarray
+    labels: np.ndarray
 
 
 def map_explained_mask(grid, tolerance):
@@ -209,8 +212,10 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
     occluded = _nearer_beside(ranges, first - 1, first, gap, full_circle) \
         | _nearer_beside(ranges, last + 1, last, gap, full_circle)
     keep = count >= min_points
+    renumber = np.where(keep, np.cumsum(keep) - 1, -1)
     return Segments(centers=centers[keep], radii=radii[keep], counts=count[keep],
-                    occluded=occluded[keep], unexplained=unexplained)
+                    occluded=occluded[keep], unexplained=unexplained,
+                    labels=renumber[label[own]])
 
 
 def _nearer_beside(ranges, beside, own, gap, full_circle):
@@ -228,4 +233,5 @@ def _nearer_beside(ranges, beside, own, gap, full_circle):
 
 def _empty(unexplained):
     return Segments(centers=np.zeros((0, 2)), radii=np.zeros(0), counts=np.zeros(0, np.int64),
-                    occluded=np.zeros(0, bool), unexplained=unexplained)
+                    occluded=np.zeros(0, bool), unexplained=unexplained,
+                    labels=np.full(len(unexplained), -1, np.int64))

@@ -20,7 +20,8 @@ controller avoids (:attr:`Observation.tracked`):
    start tentative tracks (at rest, velocity uncertain); a
    tentative track that misses a scan, or any track unseen for
    ``coast_time``, is dropped.
-5. **Report**: only tracks that move. A track is *moving* once it has been
+5. **Report**: only tracks that move (:mod:`hit_ages` tells an object
+   that stays in the same cells from one that moves). A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
    it was born (a static object's centre estimate shifts less as the view
    changes), and its speed is at least ``min_speed``; it stays moving until
@@ -68,8 +69,11 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.local_planning.hit_ages import HitAges
 from fusion_planner.core.local_planning.scan_segments import map_explained_mask, segment_scan
 
+#: A candidate with at least this fraction of its returns in old cells stays put.
+STATIC_FRACTION = 0.5
 #: Cost of a forbidden (gated out) pairing in the assignment; any gated-in
 #: cost is below ``gate``.
 FORBIDDEN_COST = 1e9
@@ -112,6 +116,11 @@ class TrackerParams:
         Distance [m] from its birth a track must have travelled to be moving.
     radius_smoothing : float
         Weight in (0, 1] of a new radius in a track's running mean.
+    static_age : float
+        A candidate with most of its returns in cells hit without a break for
+        this long [s] stays put: its track is not moving.
+    hit_break : float
+        A cell not hit for longer than this [s] starts a new run of hits.
     max_tracks : int
         Cap on live tracks; the candidates nearest the laser are kept.
     """
@@ -130,12 +139,14 @@ class TrackerParams:
     min_speed: float = 0.1
     min_travel: float = 0.25
     radius_smoothing: float = 0.3
+    static_age: float = 1.0
+    hit_break: float = 0.3
     max_tracks: int = 100
 
     def __post_init__(self):
         for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
-                     'coast_time', 'radius_smoothing'):
+                     'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool)
                     and math.isfinite(value) and value > 0):
@@ -214,6 +225,7 @@ class ScanTracker:
         self.grid = grid
         self.params = params or TrackerParams()
         self._explained = map_explained_mask(grid, self.params.map_tolerance)
+        self._ages = HitAges(grid, self.params.hit_break)
         self._measurement_cov = np.eye(2) * self.params.measurement_std ** 2
         self.time = None
         self._next_id = 0
@@ -258,15 +270,21 @@ class ScanTracker:
         p = self.params
         segments = segment_scan(angles, ranges, origin, self.grid, self._explained,
                                 p.cluster_gap, p.min_points)
+        staying = self._staying(segments)
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
-        occluded = segments.occluded[objects]
+        occluded, staying = segments.occluded[objects], staying[objects]
         track_of = self._associate(centers)
         matched = track_of >= 0
         whole = matched & ~occluded
         self._correct(track_of[whole], centers[whole], radii[whole])
         # a partly hidden object's centre is biased: its track coasts, but lives on
         self._last_seen[track_of[matched & occluded]] = self.time
+        # an object whose returns stay in the same cells is not moving, whatever
+        # its centre estimate does as the view changes; it must travel again
+        still = track_of[matched & staying]
+        self._moving[still] = False
+        self._birth[still] = self._x[still, 0:2]
         self._drop_lost()
         born = ~matched & ~occluded
         self._give_birth(centers[born], radii[born], origin[:2])
@@ -299,6 +317,16 @@ class ScanTracker:
         self.__init__(self.grid, self.params)
 
     # -- filter steps -------------------------------------------------------------
+
+    def _staying(self, segments):
+        """Whether most of each candidate's returns fall in cells hit for ``static_age``."""
+        if not len(segments.unexplained):
+            return np.zeros(0, bool)
+        old = self._ages.update(segments.unexplained, self.time) >= self.params.static_age
+        labelled = segments.labels >= 0
+        old_count = np.bincount(segments.labels[labelled], weights=old[labelled],
+                                minlength=len(segments.counts))
+        return old_count >= STATIC_FRACTION * segments.counts
 
     def _predict(self, dt):
         if dt <= 0 or not len(self._x):

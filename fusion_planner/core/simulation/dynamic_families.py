@@ -38,7 +38,7 @@ from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.global_planning.planner import PlannerConfig
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.scenario import (
-    DEFAULT_SAFETY_DISTANCE, Limits, Scenario, ScenarioError, check_scenario)
+    DEFAULT_SAFETY_DISTANCE, Limits, Scenario, ScenarioError, check_scenario, random_scenario)
 from fusion_planner.core.simulation.world import (
     MovingObstacle, RandomWalkMotion, RobotSpec, ScanConfig, WaypointMotion)
 
@@ -212,3 +212,8 @@ DYNAMIC_FAMILIES = {
     'blind-corner': blind_corner,
     'fast-obstacle': fast_obstacle,
 }
+
+
+def family_generators():
+    """Every dynamic family, the generated mixed scenarios first: name -> ``seed -> Scenario``."""
+    return {'mixed': random_scenario, **DYNAMIC_FAMILIES}

@@ -224,8 +224,9 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None, pe
     plan : PlanResult, optional
         A plan already made on the known map (saves re-planning when several
         controllers run on the same scenario).
-    perception : str, optional
-        One of :data:`PERCEPTION_MODES`; default ``scenario.perception``.
+    perception : str or ScanPerception or IdealPerception, optional
+        One of :data:`PERCEPTION_MODES` (default ``scenario.perception``),
+        or a perception object to use (and inspect afterwards).
 
     Returns
     -------
@@ -247,7 +248,10 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None, pe
         raise InvalidInput(
             f'unknown controller {controller_name!r}; choose one of {", ".join(CONTROLLERS)}')
     perception = scenario.perception if perception is None else perception
-    perceive = make_perception(perception, scenario.grid)
+    if isinstance(perception, str):
+        perceive = make_perception(perception, scenario.grid)
+    else:
+        perceive, perception = perception, perception.mode
     params = follower_params(scenario)
     # Fusion may replan on the known map plus the obstacles it has seen when
     # its escape toward the next key node fails (see follow.GridReplanner).

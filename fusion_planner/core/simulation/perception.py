@@ -29,7 +29,13 @@ class ScanPerception:
     ----------
     grid : GridMap
         The known map (returns on it are not objects).
+
+    Attributes
+    ----------
+    tracker : ScanTracker
     """
+
+    mode = 'scan'
 
     def __init__(self, grid):
         self.tracker = ScanTracker(grid)
@@ -42,6 +48,8 @@ class ScanPerception:
 
 class IdealPerception:
     """Every moving obstacle's true state, visible or not."""
+
+    mode = 'ideal'
 
     def tracked(self, world, scan):
         """``(K, 5)`` ``x, y, vx, vy, radius`` of every moving obstacle (map frame)."""
