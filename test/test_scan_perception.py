@@ -10,7 +10,8 @@ from fusion_planner.bench.tracker import TrackingStats
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.hit_ages import HitAges
 from fusion_planner.core.local_planning.scan_tracker import TrackReport
-from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES, family_generators
+from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES
+from fusion_planner.core.simulation.families import FAMILIES, family_scenario
 from fusion_planner.core.simulation.episodes import run_episode
 from fusion_planner.core.simulation.perception import (
     IdealPerception, ScanPerception, make_perception)
@@ -25,7 +26,8 @@ def test_families_are_valid_reproducible_and_differ_by_seed(family):
     assert a.moving_obstacles != c.moving_obstacles or a.goal != c.goal
     assert a.perception == 'scan'
     assert max(m.top_speed() for m in a.moving_obstacles) >= 0.3
-    assert 'mixed' in family_generators() and family in family_generators()
+    assert family in FAMILIES and family_scenario(family, 5).moving_obstacles == a.moving_obstacles
+    assert a.family == family and a.solvable is True
 
 
 def test_fast_obstacles_are_as_fast_as_the_robot():

@@ -1,7 +1,7 @@
 """Closed loop among moving obstacles: scan perception against the ideal oracle.
 
-Runs the fusion controller on generated scenarios of every dynamic family
-(:func:`~fusion_planner.core.simulation.dynamic_families.family_generators`),
+Runs the fusion controller on generated scenarios of every family with
+moving obstacles (:data:`MOVING_FAMILIES`),
 each once with ``scan`` perception (the scan tracker) and once with
 ``ideal`` perception (true obstacle states), and reports per family and
 perception the success rate, the contacts and which of them the robot could
@@ -27,11 +27,14 @@ from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
 from fusion_planner.cli.progress import Progress
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.simulation.dynamic_families import family_generators
+from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES
 from fusion_planner.core.simulation.episodes import batch_seeds, run_episode
+from fusion_planner.core.simulation.families import family_scenario
 from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 
 EXIT_OK = 0
+#: The scenario families whose difficulty includes moving obstacles.
+MOVING_FAMILIES = ('mixed', 'corridors') + tuple(DYNAMIC_FAMILIES)
 #: Below this speed [m/s] the robot is at rest when a contact begins.
 AT_REST_MPS = 0.05
 #: Default scenarios per family and batch seed; quick mode's scenarios.
@@ -66,7 +69,7 @@ def contacts_at_rest(scenario, result):
 
 def run_one(family, scenario_seed):
     """Both perceptions on one scenario of a family; one row per perception."""
-    scenario = family_generators()[family](scenario_seed)
+    scenario = family_scenario(family, scenario_seed)
     rows = []
     for mode in PERCEPTION_MODES:
         result = run_episode(scenario, 'fusion', record=True, perception=mode)
@@ -142,7 +145,7 @@ def add_arguments(parser):
     parser.add_argument('--seed', type=int, default=DEFAULT_SEED,
                         help='batch seed (default %(default)s)')
     parser.add_argument('--family', action='append', metavar='NAME',
-                        help=f'one of {", ".join(family_generators())}; repeat for several '
+                        help=f'one of {", ".join(MOVING_FAMILIES)}; repeat for several '
                              '(default all)')
     parser.add_argument('--jobs', type=int, default=1, metavar='J',
                         help='worker processes (default 1; results do not depend on it)')
@@ -160,10 +163,10 @@ def run(args):
         Bad options.
     """
     n = QUICK_SCENARIOS if args.quick else args.scenarios
-    families = args.family or list(family_generators())
-    unknown = [f for f in families if f not in family_generators()]
+    families = args.family or list(MOVING_FAMILIES)
+    unknown = [f for f in families if f not in MOVING_FAMILIES]
     if unknown or n < 1 or args.jobs < 1:
-        raise InvalidInput(f'need known families ({", ".join(family_generators())}), positive '
+        raise InvalidInput(f'need known families ({", ".join(MOVING_FAMILIES)}), positive '
                            f'--scenarios and --jobs; got {families}, {n}, {args.jobs}')
     reporter = Progress(n * len(families), 'bench dynamic', unit='scenarios')
     rows = run_families(n, args.seed, families, args.jobs,

@@ -1,7 +1,7 @@
 """Scan tracker accuracy and speed: velocity error, delay, false tracks, update time.
 
 Drives the fusion controller with scan perception on generated scenarios of
-every dynamic family and compares the tracker's moving tracks with the
+every family with moving obstacles and compares the tracker's moving tracks with the
 simulation's truth at every scan; drives it among static clutter only (no
 moving obstacle) to count false tracks; and times one tracker update on a
 720-beam scan of 20 moving obstacles.
@@ -31,19 +31,21 @@ Notes
 """
 
 import dataclasses
+import functools
 import json
 import time
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from fusion_planner.bench.dynamic import MOVING_FAMILIES
 from fusion_planner.bench.local import BEAMS, MOVING_OBSTACLES, SCAN_RATE_HZ, bench_scenario
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.scan_tracker import ScanTracker
-from fusion_planner.core.simulation.dynamic_families import family_generators
 from fusion_planner.core.simulation.episodes import batch_seeds, run_episode
+from fusion_planner.core.simulation.families import family_scenario
 from fusion_planner.core.simulation.perception import ScanPerception
 from fusion_planner.core.simulation.scenario import RandomScenarioConfig, random_scenario
 from fusion_planner.core.simulation.world import World
@@ -277,8 +279,8 @@ def run(args):
     updates = QUICK_UPDATES if args.quick else args.updates
     if n < 1 or updates < 1:
         raise InvalidInput(f'--scenarios and --updates must be positive, got {n} and {updates}')
-    families = [measure_family(name, generator, n, args.seed)
-                for name, generator in family_generators().items()]
+    families = [measure_family(name, functools.partial(family_scenario, name), n, args.seed)
+                for name in MOVING_FAMILIES]
     clutter = measure_family('static clutter', clutter_scenario, n, args.seed)
     timing = measure_update_time(updates, args.seed)
     if args.json:

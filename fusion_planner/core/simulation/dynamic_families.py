@@ -1,7 +1,9 @@
 """Generated scenarios whose difficulty is moving obstacles.
 
-Each family is a function ``seed -> Scenario`` in :data:`DYNAMIC_FAMILIES`;
-the same seed gives the same scenario. All share the robot of the generated
+Each family is a function ``seed -> Scenario`` in :data:`DYNAMIC_FAMILIES`
+(registered in :data:`~fusion_planner.core.simulation.families.FAMILIES`,
+so ``sim --random N --family NAME`` runs them); the same seed gives the
+same scenario. All share the robot of the generated
 scenarios (radius 0.2 m, top speed 0.8 m/s), a 360-beam laser with 1 cm
 range noise, a 0.1 s control period and a 90 s time limit:
 
@@ -38,7 +40,7 @@ from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.global_planning.planner import PlannerConfig
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.scenario import (
-    DEFAULT_SAFETY_DISTANCE, Limits, Scenario, ScenarioError, check_scenario, random_scenario)
+    DEFAULT_SAFETY_DISTANCE, Limits, Scenario, ScenarioError, check_scenario)
 from fusion_planner.core.simulation.world import (
     MovingObstacle, RandomWalkMotion, RobotSpec, ScanConfig, WaypointMotion)
 
@@ -48,9 +50,6 @@ SCAN = ScanConfig(beams=360, range_max=8.0, noise_std=0.01)
 LIMITS = Limits(time_limit_s=90.0, dt=0.1, max_collisions=10)
 #: Map cell edge [m].
 RESOLUTION = 0.1
-#: Extra inflation of the plan beyond the robot radius [m] (as the generated
-#: scenarios).
-PLAN_MARGIN_M = 0.15
 #: Speed [m/s] the timing of an encounter assumes for the robot (its
 #: average on a straight way).
 ROBOT_CRUISE = 0.6
@@ -73,9 +72,9 @@ def scenario_of(family, seed, grid, start, goal, moving):
     scenario = Scenario(
         name=f'{family}-{seed}', grid=grid, robot=ROBOT, start=tuple(map(float, start)),
         goal=tuple(map(float, goal)), moving_obstacles=tuple(moving),
-        planner=PlannerConfig(robot_radius=ROBOT.radius + PLAN_MARGIN_M,
-                              safety_distance=DEFAULT_SAFETY_DISTANCE),
-        limits=LIMITS, scan=SCAN, seed=int(seed), description=f'generated family {family}')
+        planner=PlannerConfig(robot_radius=ROBOT.radius, safety_distance=DEFAULT_SAFETY_DISTANCE),
+        limits=LIMITS, scan=SCAN, seed=int(seed), description=f'generated family {family}',
+        family=family, solvable=True)
     try:
         check_scenario(scenario)
     except ScenarioError:
@@ -164,13 +163,14 @@ def blind_corner(seed):
         else:
             occupied[1:main_lo, c0:c1] = False
         grid = GridMap(occupied, RESOLUTION)
-        start, goal = (1.0, 4.5, 0.0), (13.0, float(rng.uniform(4.0, 5.0)))
+        start = (1.0, float(rng.uniform(4.0, 5.0)), float(rng.uniform(-0.3, 0.3)))
+        goal = (13.0, float(rng.uniform(4.0, 5.0)))
         x = side_x + side_w / 2
         deep, far = (8.5, 3.8) if north else (0.5, 5.2)
         speed = float(rng.uniform(0.6, 1.0))
         meet = (x, 4.5)
         person = MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
-            rng, (x, deep), (x, far), meet, speed, (x - 1.0) / ROBOT_CRUISE))
+            rng, (x, deep), (x, far), meet, speed, (x - start[0]) / ROBOT_CRUISE))
         scenario = scenario_of('blind-corner', seed, grid, start, goal, [person])
         if scenario is not None:
             return scenario
@@ -213,7 +213,3 @@ DYNAMIC_FAMILIES = {
     'fast-obstacle': fast_obstacle,
 }
 
-
-def family_generators():
-    """Every dynamic family, the generated mixed scenarios first: name -> ``seed -> Scenario``."""
-    return {'mixed': random_scenario, **DYNAMIC_FAMILIES}
