@@ -43,7 +43,8 @@ from fusion_planner.core.grid import GridMap  # noqa: E402
 from fusion_planner.core.map_files import save_map_server  # noqa: E402
 from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros.global_planner import GlobalPlannerNode  # noqa: E402
-from fusion_planner.ros.simulator import GOAL_QOS, SimulatorNode  # noqa: E402
+from fusion_planner.ros.qos import RELIABLE_QOS  # noqa: E402
+from fusion_planner.ros.simulator import SimulatorNode  # noqa: E402
 
 #: Requested speed-up; the lockstep makes the achieved one what the CPU allows.
 REAL_TIME_FACTOR = 10.0
@@ -96,19 +97,19 @@ class Loop:
                                          self.params['local_planner']['goal_tolerance'])
         self.monitor = Node('fault_monitor', context=context)
         demo.attach_recorder(self.monitor, self.recorder)
-        self.goal_pub = self.monitor.create_publisher(PoseStamped, 'goal_pose', GOAL_QOS)
+        self.goal_pub = self.monitor.create_publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
         self.sim, self.planner, self.local = demo.make_nodes(context, self.params)
         # (simulated time [s], v, omega, latest input time [s]: odometry stamp and
         # receipt, scan receipt; -inf without inputs)
         self.commands = []
         publish_command = self.local._publish_command
 
-        def record(v, omega):
+        def record(v, omega, idle=False):
             node = self.local
             times = [node._odom[0], node._odom_received] if node._odom is not None else []
             times += [node._scan[1]] if node._scan is not None else []
             self.commands.append((node._now_s(), v, omega, max(times, default=-math.inf)))
-            publish_command(v, omega)
+            publish_command(v, omega, idle)
         self.local._publish_command = record
         self.executor = self.spinner = None
         self._spin()

@@ -119,7 +119,7 @@ class Harness:
         self.goal_pub = t.create_publisher(PoseStamped, 'goal_pose', 10)
         t.create_subscription(Path, 'plan', self.plans.append, LATCHED_QOS)
         t.create_subscription(MarkerArray, 'plan_markers', self.markers.append, 10)
-        t.create_subscription(DiagnosticArray, 'diagnostics',
+        t.create_subscription(DiagnosticArray, '/diagnostics',
                               lambda m: self.statuses.extend(m.status), 10)
         self.client = t.create_client(GetPlan, 'get_plan')
         self.executor = SingleThreadedExecutor(context=ctx)

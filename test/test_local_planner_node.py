@@ -37,6 +37,7 @@ from fusion_planner.core.local_planning import apf, follow  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
 from fusion_planner.ros import fuzz  # noqa: E402
 from fusion_planner.ros import local_planner as lp  # noqa: E402
+from fusion_planner.ros.qos import LATCHED_QOS  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 
@@ -64,9 +65,10 @@ class FakeRobot:
         self.odom_on = True
         self.scan_on = True
         self.last_odom_wall = None
+        self.odom_stamps = set()  # stamps of the odometry sent [s]
         self.odom_pub = self.node.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
         self.scan_pub = self.node.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
-        self.plan_pub = self.node.create_publisher(Path, 'plan', lp.PLAN_QOS)
+        self.plan_pub = self.node.create_publisher(Path, 'plan', LATCHED_QOS)
         self.node.create_subscription(TwistStamped if stamped else Twist, 'cmd_vel',
                                       self._on_cmd, 50)
         self.statuses = []  # key values of the local planner's diagnostics
@@ -96,6 +98,7 @@ class FakeRobot:
             odom.header.stamp = stamp
             odom.pose.pose.orientation.w = 1.0
             self.odom_pub.publish(odom)
+            self.odom_stamps.add(conv.stamp_to_seconds(stamp))
             self.last_odom_wall = time.monotonic()
         if self.scan_on:
             scan = LaserScan()
@@ -146,7 +149,21 @@ def moving(commands):
     return [c for c in commands if c[1] != 0.0 or c[2] != 0.0]
 
 
-def test_no_plan_gives_zero_commands_at_the_control_rate(robot):
+def test_idle_planner_sends_one_zero_command_then_nothing(robot):
+    robot.wait(1.0)
+    commands = robot.commands_since(0.0)
+    assert len(commands) == 1 and not moving(commands)
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0), 'never moved'
+    robot.publish_empty_plan()
+    t0 = time.monotonic()
+    robot.wait(1.0)
+    after = robot.commands_since(t0)
+    assert len(after) == 1 and not moving(after), 'one stop, then silence'
+
+
+@pytest.mark.parametrize('robot', [{'publish_zero_when_idle': True}], indirect=True)
+def test_idle_zero_commands_at_the_control_rate_when_asked(robot):
     t0 = time.monotonic()
     robot.wait(1.0)
     commands = robot.commands_since(t0)
@@ -208,7 +225,7 @@ def test_stale_scan_slows_the_robot_when_asked(robot):
 
 def test_plan_publisher_gone_stops_the_robot(robot, context):
     publisher_node = Node('short_lived_planner', context=context)
-    pub = publisher_node.create_publisher(Path, 'plan', lp.PLAN_QOS)
+    pub = publisher_node.create_publisher(Path, 'plan', LATCHED_QOS)
     pub.publish(conv.path_to_msg([[0.0, 0.0], [5.0, 0.0]], 'map', conv.seconds_to_stamp(1.0)))
     try:
         assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0)
@@ -222,15 +239,16 @@ def test_plan_publisher_gone_stops_the_robot(robot, context):
     assert not late
 
 
-@pytest.mark.parametrize('stamped', [True])
-def test_twist_stamped_by_parameter(context, stamped):
-    fake = FakeRobot(context, stamped=True, use_stamped_twist=True)
+@pytest.mark.parametrize('parameter', ['enable_stamped_cmd_vel', 'use_stamped_twist'])
+def test_twist_stamped_by_parameter_carries_the_odometry_stamp(context, parameter):
+    fake = FakeRobot(context, stamped=True, **{parameter: True})
     try:
         fake.publish_plan()
         assert fake.wait_until(lambda: moving(fake.commands_since(0.0)), 5.0)
         msg = fake.commands_since(0.0)[-1][3]
         assert isinstance(msg, TwistStamped)
         assert msg.header.frame_id == 'base_link'
+        assert conv.stamp_to_seconds(msg.header.stamp) in fake.odom_stamps
     finally:
         fake.close()
 
@@ -287,6 +305,7 @@ def test_every_follower_and_field_coefficient_is_a_described_parameter_in_params
     assert not stale, f'params.yaml value, node default: {stale}'
 
 
+@pytest.mark.parametrize('robot', [{'publish_zero_when_idle': True}], indirect=True)
 def test_run_time_parameter_changes_accepted_or_refused_with_a_reason(robot):
     node = robot.planner
     ok = node.set_parameters([Parameter('max_speed', value=0.3),
@@ -295,7 +314,7 @@ def test_run_time_parameter_changes_accepted_or_refused_with_a_reason(robot):
     assert node._controller.params.max_speed == 0.3
     refused = node.set_parameters([Parameter('apf_d_min', value=2.0)])[0]  # must stay < apf_rho
     assert not refused.successful and 'd_min' in refused.reason
-    read_only = node.set_parameters([Parameter('use_stamped_twist', value=True)])[0]
+    read_only = node.set_parameters([Parameter('enable_stamped_cmd_vel', value=True)])[0]
     assert not read_only.successful and read_only.reason
     choice = node.set_parameters([Parameter('on_stale_scan', value='sprint')])[0]
     assert not choice.successful and 'on_stale_scan' in choice.reason

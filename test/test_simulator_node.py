@@ -16,7 +16,7 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseStamped, Twist  # noqa: E402
+from geometry_msgs.msg import PoseStamped, Twist, TwistStamped  # noqa: E402
 from nav_msgs.msg import OccupancyGrid, Odometry, Path  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -56,7 +56,7 @@ class Probe:
         self.got = {name: [] for name in ('clock', 'odom', 'scan', 'obstacles', 'goal', 'diag')}
         subscriptions = (
             ('clock', Clock, 'clock', 10),
-            ('odom', Odometry, 'odom', qos_profile_sensor_data),
+            ('odom', Odometry, 'odom', 10),  # stock QoS (reliable), as RViz and Nav2
             ('scan', LaserScan, 'scan', qos_profile_sensor_data),
             ('obstacles', MarkerArray, 'obstacles', 10),
             ('goal', PoseStamped, 'goal_pose', 10),
@@ -64,7 +64,8 @@ class Probe:
         )
         for name, msg_type, topic, qos in subscriptions:
             self.node.create_subscription(msg_type, topic, self._recorder(name), qos)
-        self.cmd_pub = self.node.create_publisher(Twist, 'cmd_vel', 10)
+        self.cmd_pub = self.node.create_publisher(
+            TwistStamped if overrides.get('enable_stamped_cmd_vel') else Twist, 'cmd_vel', 10)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.sim)
         self.executor.add_node(self.node)
@@ -147,25 +148,31 @@ def test_late_subscriber_gets_the_known_map_without_unknown_obstacles(probe, con
         late.destroy_node()
 
 
+@pytest.mark.parametrize('probe', [{}, {'enable_stamped_cmd_vel': True}], indirect=True)
 def test_commands_move_the_robot_and_a_nan_command_stops_it(probe):
+    pub = probe.cmd_pub
+    stamped = pub.msg_type is TwistStamped
+    assert probe.wait_until(lambda: pub.get_subscription_count() > 0)
     assert probe.wait_until(lambda: probe.messages('odom'))
     start = probe.messages('odom')[-1].pose.pose.position
-    moving = Twist()
-    moving.linear.x = 0.4
+
+    def command(v):
+        twist = Twist()
+        twist.linear.x = v
+        return conv.velocity_to_twist_stamped(v, 0.0, 'base_link', conv.seconds_to_stamp(0.0)) \
+            if stamped and math.isfinite(v) else (TwistStamped(twist=twist) if stamped else twist)
 
     def speed():
         return probe.messages('odom')[-1].twist.twist.linear.x
 
     for _ in range(40):
-        probe.cmd_pub.publish(moving)
+        pub.publish(command(0.4))
         time.sleep(0.025)
     assert speed() > 0.2
     now = probe.messages('odom')[-1].pose.pose.position
     assert math.hypot(now.x - start.x, now.y - start.y) > 0.05
-    bad = Twist()
-    bad.linear.x = math.nan
     for _ in range(40):
-        probe.cmd_pub.publish(bad)
+        pub.publish(command(math.nan))
         time.sleep(0.025)
     assert speed() == 0.0
     assert probe.wait_until(lambda: int(probe.sim_status().get('rejected', 0)) >= 1)
@@ -173,7 +180,7 @@ def test_commands_move_the_robot_and_a_nan_command_stops_it(probe):
 
 def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_commands_still_drive(
         probe, capfd):
-    plan_pub = probe.node.create_publisher(Path, 'plan', sim.PLAN_QOS)
+    plan_pub = probe.node.create_publisher(Path, 'plan', sim.LATCHED_QOS)
     assert probe.wait_until(lambda: probe.cmd_pub.get_subscription_count() > 0
                             and plan_pub.get_subscription_count() > 0)
     robot = probe.sim.scenario.robot
@@ -246,7 +253,7 @@ def test_start_paused_holds_the_world_until_the_first_plan(probe):
     assert probe.wait_until(lambda: len(probe.messages('clock')) >= 3)
     time.sleep(0.5)
     assert probe.sim_time() == 0.0
-    plan_pub = probe.node.create_publisher(Path, 'plan', sim.PLAN_QOS)
+    plan_pub = probe.node.create_publisher(Path, 'plan', sim.LATCHED_QOS)
     plan_pub.publish(conv.path_to_msg([[1.0, 1.0], [2.0, 2.0]], 'map', conv.seconds_to_stamp(0.0)))
     assert probe.wait_until(lambda: probe.sim_time() > 0.5)
 

@@ -303,12 +303,14 @@ class RunRecorder:
                 self.plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
                 self.plans.append(self.plan)
 
-    def on_diagnostics(self, msg):
+    def on_diagnostics(self, msg, namespace='/'):
+        """Take the statuses of the nodes under ``namespace`` from ``/diagnostics``."""
         stamp = _seconds(msg.header.stamp)  # sender's clock
+        prefix = namespace.rstrip('/') + '/'
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
             with self._lock:
-                if status.name.endswith('/local_planner'):
+                if status.name == prefix + 'local_planner':
                     self.local_status = values
                     stuck = int(values.get('stuck_events', 0))
                     if stuck > self.stuck_events and self.poses:
@@ -321,9 +323,9 @@ class RunRecorder:
                         self.arrived_wall = time.monotonic()
                     if values.get('status') == 'failed':
                         self.failure = f'local planner failed: {values.get("last_error", "")}'
-                elif status.name.endswith('/global_planner'):
+                elif status.name == prefix + 'global_planner':
                     self.planner_status = values
-                elif status.name.endswith('/simulator'):
+                elif status.name == prefix + 'simulator':
                     self.sim_status = values
                     self.sim_status_wall = time.monotonic()
 
@@ -402,13 +404,16 @@ def attach_recorder(node, recorder):
     from rosgraph_msgs.msg import Clock
     from visualization_msgs.msg import MarkerArray
 
-    from fusion_planner.ros.global_planner import LATCHED_QOS
+    from fusion_planner.ros.diagnostics import DIAGNOSTICS_TOPIC
+    from fusion_planner.ros.qos import LATCHED_QOS
 
     node.create_subscription(Clock, 'clock', recorder.on_clock, 10)
     node.create_subscription(Odometry, 'odom', recorder.on_odom, qos_profile_sensor_data)
     node.create_subscription(MarkerArray, 'obstacles', recorder.on_obstacles, 10)
     node.create_subscription(Path, 'plan', recorder.on_plan, LATCHED_QOS)
-    node.create_subscription(DiagnosticArray, 'diagnostics', recorder.on_diagnostics, 50)
+    namespace = node.get_namespace()
+    node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC,
+                             lambda msg: recorder.on_diagnostics(msg, namespace), 50)
 
 
 # -- running ------------------------------------------------------------------------
@@ -779,7 +784,7 @@ def recorded_topics():
             ('plan_markers', MarkerArray, reliable), ('local_plan', Path, reliable),
             ('odom', Odometry, sensor), ('scan', LaserScan, sensor),
             ('obstacles', MarkerArray, reliable), ('cmd_vel', Twist, reliable),
-            ('goal_pose', PoseStamped, reliable), ('diagnostics', DiagnosticArray, reliable))
+            ('goal_pose', PoseStamped, reliable), ('/diagnostics', DiagnosticArray, reliable))
 
 
 def start_recording(node, path):

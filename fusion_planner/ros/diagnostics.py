@@ -8,8 +8,9 @@ reported at ERROR level, and the node carries on.
 - :class:`RateLimitedLogger`: at most one line per distinct reason key per
   period; the next line of that key says how many were suppressed.
 - :class:`DiagnosticsReporter`: publishes ``diagnostic_msgs/DiagnosticArray``
-  on the relative topic ``diagnostics`` with one status named after the
-  node's fully qualified name (so namespaced robots differ): level, message,
+  on the absolute topic ``/diagnostics`` (where diagnostic_aggregator and
+  rqt_robot_monitor listen, whatever the node's namespace) with one status
+  named after the node's fully qualified name (so namespaced robots differ): level, message,
   and key values (``last_outcome``, ``last_error``, counters, timings the
   node passes). It publishes on every event and, optionally, on a heartbeat
   timer. :meth:`DiagnosticsReporter.guard` wraps a callback so that neither
@@ -30,6 +31,8 @@ DEFAULT_LOG_PERIOD_S = 5.0
 MAX_LOG_KEYS = 256
 #: Queue depth of the diagnostics publisher [messages].
 DIAGNOSTICS_QUEUE_DEPTH = 10
+#: The diagnostics topic: absolute, as in every ROS 2 stack.
+DIAGNOSTICS_TOPIC = '/diagnostics'
 #: Diagnostic levels, by name.
 OK, WARN, ERROR, STALE = (DiagnosticStatus.OK, DiagnosticStatus.WARN,
                           DiagnosticStatus.ERROR, DiagnosticStatus.STALE)
@@ -133,7 +136,8 @@ class DiagnosticsReporter:
 
     def __init__(self, node, period_s=0.0, log_period_s=DEFAULT_LOG_PERIOD_S):
         self._node = node
-        self._pub = node.create_publisher(DiagnosticArray, 'diagnostics', DIAGNOSTICS_QUEUE_DEPTH)
+        self._pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
+                                          DIAGNOSTICS_QUEUE_DEPTH)
         self.log = RateLimitedLogger(node.get_logger(), log_period_s)
         self._lock = threading.Lock()
         self._name = node.get_fully_qualified_name()

@@ -57,6 +57,7 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S, RateLimitedLogger
+from fusion_planner.ros.qos import LatchedOrVolatile
 
 #: A message and the names of the defects put into it (empty: a valid message).
 Fuzzed = namedtuple('Fuzzed', 'msg defects')
@@ -618,7 +619,11 @@ class FuzzTarget:
         self.inputs = {}
         for sub in node.subscriptions:
             if sub.topic_name != '/clock':
-                self.inputs[sub.topic_name.rsplit('/', 1)[-1]] = (sub.msg_type, sub.callback)
+                # Past the duplicate filter of a topic subscribed twice: every
+                # fuzzed message must reach the node's own callback.
+                owner = getattr(getattr(sub.callback, 'func', None), '__self__', None)
+                callback = owner.callback if isinstance(owner, LatchedOrVolatile) else sub.callback
+                self.inputs[sub.topic_name.rsplit('/', 1)[-1]] = (sub.msg_type, callback)
         for srv in node.services:
             if not srv.srv_type.__module__.startswith(RCLPY_SERVICE_PACKAGES):
                 self.inputs[srv.service_name.rsplit('/', 1)[-1]] = (

@@ -2,21 +2,24 @@
 
 Topics (relative names, so a namespace or a remap applies):
 
-- ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local, depth 1) in:
+- ``map`` (nav_msgs/OccupancyGrid; latched or volatile reliable publishers,
+  see :class:`~fusion_planner.ros.qos.LatchedOrVolatile`) in:
   converted once per map into a :class:`~fusion_planner.core.grid.GridMap`
   whose inflation and search grid are reused by every plan on it.
 - ``goal_pose`` (geometry_msgs/PoseStamped) in: plans from the latest robot
   pose and publishes on ``plan``.
 - ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``) or, with
   ``pose_topic_type: pose_with_covariance``, ``amcl_pose``
-  (geometry_msgs/PoseWithCovarianceStamped) in: the start pose. Subscribed
-  best-effort, which matches reliable and best-effort publishers alike.
+  (geometry_msgs/PoseWithCovarianceStamped) in: the start pose. ``odom`` is
+  subscribed best-effort, which matches reliable and best-effort publishers
+  alike; ``amcl_pose`` also takes AMCL's latched pose (reliable,
+  transient local) sent before the node joined.
 - ``plan`` (nav_msgs/Path, reliable, transient_local) out: the smoothed
   path; an *empty* path when planning for the current goal failed, so a
   follower stops instead of driving an old plan.
 - ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
   expanded cells when ``publish_expanded`` is set.
-- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
+- ``scan`` (sensor_msgs/LaserScan, best effort, frame =
   ``robot_frame_id``: the laser at the robot centre) in, with
   ``mark_obstacles``: obstacles the map does not show are learnt from the
   returns (marked once seen for ``obstacle_persistence``, cleared when a
@@ -25,7 +28,7 @@ Topics (relative names, so a namespace or a remap applies):
   confirmed ones, and a plan they block is replaced at once.
 - ``get_plan`` (nav_msgs/srv/GetPlan): plans between the request's poses
   without touching ``plan``; an empty path on failure.
-- ``diagnostics`` out: outcome of each request (``succeeded`` or the
+- ``/diagnostics`` out: outcome of each request (``succeeded`` or the
   ``.outcome`` of the core error: ``start_outside_map``, ``goal_occupied``,
   ``no_valid_path``, ``timeout`` ...; ``no_map`` and ``no_start_pose`` while
   waiting), plan time and figures.
@@ -53,8 +56,7 @@ from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
 from rclpy.node import Node
-from rclpy.qos import (
-    DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data)
+from rclpy.qos import ReliabilityPolicy
 from scipy import ndimage
 from scipy.spatial import cKDTree
 from sensor_msgs.msg import LaserScan
@@ -70,6 +72,7 @@ from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanne
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -78,13 +81,6 @@ NODE_NAME = 'global_planner'
 #: ``pose_topic_type`` values and the topic each one subscribes.
 POSE_TOPICS = {'odometry': 'odom', 'pose_with_covariance': 'amcl_pose'}
 
-#: QoS of ``map`` and ``plan``: latched (a late joiner gets the last one).
-LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: QoS of ``goal_pose``.
-GOAL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-#: Queue depth of ``plan_markers`` [messages].
-MARKERS_DEPTH = 10
 
 #: Largest tolerance search radius [cells]; a larger tolerance is clipped to
 #: it so the search window stays (2 * 500 + 1)^2 cells at most.
@@ -304,20 +300,21 @@ class GlobalPlannerNode(Node):
 
         guard = self._diagnostics.guard
         self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, 'plan_markers', MARKERS_DEPTH)
-        self.create_subscription(OccupancyGrid, 'map', guard('map', self._on_map), LATCHED_QOS)
+        self._markers_pub = self.create_publisher(MarkerArray, 'plan_markers', RELIABLE_QOS)
+        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
+                                          ReliabilityPolicy.RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
-                                 GOAL_QOS)
+                                 RELIABLE_QOS)
         if params.pose_topic_type == 'odometry':
             self.create_subscription(Odometry, POSE_TOPICS['odometry'],
-                                     guard('odom', self._on_odometry), qos_profile_sensor_data)
+                                     guard('odom', self._on_odometry), ANY_PUBLISHER_QOS)
         else:
-            self.create_subscription(PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
-                                     guard('amcl_pose', self._on_pose_with_covariance),
-                                     qos_profile_sensor_data)
+            self._pose_sub = LatchedOrVolatile(
+                self, PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
+                guard('amcl_pose', self._on_pose_with_covariance), ReliabilityPolicy.BEST_EFFORT)
         if params.mark_obstacles:
             self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
-                                     qos_profile_sensor_data)
+                                     ANY_PUBLISHER_QOS)
         self.create_service(GetPlan, 'get_plan',
                             guard('get_plan', self._on_get_plan, on_error=self._empty_response))
         self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')

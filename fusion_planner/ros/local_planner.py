@@ -8,27 +8,33 @@ controller at a fixed rate on the node clock (sim time under
 
 Topics (relative names, so a namespace or a remap applies):
 
-- ``plan`` (nav_msgs/Path, reliable, transient_local, depth 1) in: the global
-  plan. Its key nodes become the APF sub-goals: the plan arrives smoothed,
+- ``plan`` (nav_msgs/Path; latched or volatile publishers, see
+  :class:`~fusion_planner.ros.qos.LatchedOrVolatile`) in: the global plan. Its key nodes become the APF sub-goals: the plan arrives smoothed,
   so they are recovered as the corners its arcs rounded
   (:func:`key_nodes_of`). An *empty* path means "no
   plan": the robot stops. The same plan again (a latched republish) keeps
   the controller's state.
-- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``, sensor-data QoS)
-  in: pose and measured velocity. The pose is moved ahead along the measured
+- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``, best effort:
+  reliable and best-effort publishers match) in: pose and measured velocity. The pose is moved ahead along the measured
   velocity from its stamp to the control step
   (:func:`~fusion_planner.ros.timed_pose.pose_at`), which
   compensates the delay of a message that arrived a step late.
-- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame =
+- ``scan`` (sensor_msgs/LaserScan, best effort, frame =
   ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
   points, placed in the map with the odometry pose of the scan's stamp.
 - ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in:
   tracked moving obstacles; velocities are estimated from successive
   positions (:class:`~fusion_planner.ros.conversions.ObstacleTracker`).
 - ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
-  ``use_stamped_twist``) out, at ``control_rate`` on the node clock.
+  ``enable_stamped_cmd_vel``, reliable) out, at ``control_rate`` on the node
+  clock while a plan is followed. A TwistStamped carries the stamp of the
+  odometry the step used (the sensor data it answers), so a simulator can
+  tell which step a command belongs to. Idle (no plan, or the plan ended:
+  arrived, failed, no path) the node publishes one zero command and then
+  nothing, so it does not fight a teleop or keep a twist_mux input alive;
+  ``publish_zero_when_idle`` keeps a zero command at ``control_rate``.
 - ``local_plan`` (nav_msgs/Path) out: the controller's short field rollout.
-- ``diagnostics`` out: controller status, arrival, failure with its reason,
+- ``/diagnostics`` out: controller status, arrival, failure with its reason,
   stuck events, stale inputs, step timing.
 
 Safety policy (DESIGN.md, Errors): the command is exactly zero with no plan,
@@ -55,7 +61,7 @@ import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry, Path
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
@@ -64,18 +70,12 @@ from fusion_planner.core.errors import InvalidInput
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'local_planner'
 
-#: QoS of ``plan``: the global planner's latched profile.
-PLAN_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: Queue depth of ``cmd_vel`` (reliable) [messages].
-CMD_VEL_DEPTH = 10
-#: Queue depth of ``local_plan`` and ``obstacles`` [messages].
-DEFAULT_DEPTH = 10
 #: Prefix of the parameters that fill :class:`~fusion_planner.core.local_planning.apf.ApfParams`.
 APF_PREFIX = 'apf_'
 #: A node-clock step backwards larger than this [s] is a clock reset.
@@ -100,8 +100,14 @@ NODE_PARAMETERS = (
     ('control_rate', 20.0,
      'rate of cmd_vel on the node clock; the follower period is its inverse [Hz]',
      float_range(1.0, 200.0), False, ()),
-    ('use_stamped_twist', False, 'publish geometry_msgs/TwistStamped instead of Twist on cmd_vel',
+    ('enable_stamped_cmd_vel', False,
+     "publish geometry_msgs/TwistStamped instead of Twist on cmd_vel (Nav2's name)",
      None, True, ()),
+    ('use_stamped_twist', False, 'deprecated alias of enable_stamped_cmd_vel: true also '
+     'enables it (with a warning)', None, True, ()),
+    ('publish_zero_when_idle', False,
+     'keep publishing a zero cmd_vel at control_rate while idle (no plan, or the plan ended); '
+     'false: one zero command, then silence', None, False, ()),
     ('odom_timeout', 0.5, 'older odometry stops the robot [s]', float_range(0.01, 60.0), False, ()),
     ('scan_timeout', 0.5, 'an older scan is stale (see on_stale_scan) [s]',
      float_range(0.01, 60.0), False, ()),
@@ -365,19 +371,24 @@ class LocalPlannerNode(Node):
         self._stuck_events = 0
         self._step_ms_max = 0.0
         self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
+        self._idle_stop_sent = False  # the one zero command of an idle spell went out
+        self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
+        if params.use_stamped_twist:
+            self.get_logger().warning('use_stamped_twist is deprecated: '
+                                      'set enable_stamped_cmd_vel instead')
 
         guard = self._diagnostics.guard
-        twist_type = TwistStamped if params.use_stamped_twist else Twist
-        self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', CMD_VEL_DEPTH)
-        self._local_plan_pub = self.create_publisher(Path, 'local_plan', DEFAULT_DEPTH)
-        self._plan_sub = self.create_subscription(Path, 'plan', guard('plan', self._on_plan),
-                                                  PLAN_QOS)
+        twist_type = TwistStamped if self._stamped else Twist
+        self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
+        self._local_plan_pub = self.create_publisher(Path, 'local_plan', RELIABLE_QOS)
+        self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
+                                           ReliabilityPolicy.RELIABLE)
         self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
-                                 qos_profile_sensor_data)
+                                 ANY_PUBLISHER_QOS)
         self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
-                                 qos_profile_sensor_data)
+                                 ANY_PUBLISHER_QOS)
         self.create_subscription(MarkerArray, 'obstacles', guard('obstacles', self._on_obstacles),
-                                 DEFAULT_DEPTH)
+                                 RELIABLE_QOS)
         self._timer = self.create_timer(1.0 / params.control_rate,
                                         guard('control', self._on_timer, on_error=self._on_fault))
         self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
@@ -469,7 +480,7 @@ class LocalPlannerNode(Node):
             stop_reason = self._stop_reason(now, params)
             if stop_reason is not None:
                 status, message = stop_reason
-                self._publish_command(0.0, 0.0)
+                self._publish_command(0.0, 0.0, idle=self._plan is None)
                 self._report(status, message, WARN if status != 'no_path' else OK)
                 return
             pose = pose_at((self._odom,), now, params.odom_timeout)
@@ -487,7 +498,7 @@ class LocalPlannerNode(Node):
                 v = omega = 0.0
             elif scan_stale:
                 v = min(v, params.stale_scan_speed)
-            self._publish_command(v, omega)
+            self._publish_command(v, omega, idle=command.status in STOPPED_STATUSES)
             if command.local_plan is not None and len(command.local_plan) \
                     and self._local_plan_pub.get_subscription_count() > 0:
                 self._local_plan_pub.publish(
@@ -552,9 +563,15 @@ class LocalPlannerNode(Node):
 
     # -- outputs --------------------------------------------------------------
 
-    def _publish_command(self, v, omega):
-        if self._params.current.use_stamped_twist:
-            msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, self._stamp())
+    def _publish_command(self, v, omega, idle=False):
+        """Publish a command; idle, only the first zero unless ``publish_zero_when_idle``."""
+        if idle and self._idle_stop_sent and not self._params.current.publish_zero_when_idle:
+            return
+        self._idle_stop_sent = idle
+        if self._stamped:
+            stamp = conv.seconds_to_stamp(self._odom[0]) if self._odom is not None \
+                else self._stamp()
+            msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, stamp)
         else:
             msg = conv.velocity_to_twist(v, omega)
         self._cmd_pub.publish(msg)

@@ -24,7 +24,7 @@ Topics (relative names, so a namespace or a remap applies):
 
 - ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local) out, once:
   the **known** map, without the scenario's unknown obstacles.
-- ``odom`` (nav_msgs/Odometry, sensor-data QoS) out, every step: the true
+- ``odom`` (nav_msgs/Odometry, reliable) out, every step: the true
   pose in ``frame_id`` (child ``robot_frame_id``) and the applied velocity.
 - ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame
   ``robot_frame_id``) out at ``scan_rate``: the world's ray-cast scan
@@ -35,10 +35,17 @@ Topics (relative names, so a namespace or a remap applies):
   name is relative: under a namespace it is ``<ns>/clock``, and the nodes
   that run on it need ``-r /clock:=clock`` (rclpy's time source listens on
   ``/clock``), so two simulated robots keep two clocks apart.
-- ``cmd_vel`` (geometry_msgs/Twist, reliable) in: applied until a newer
-  one arrives or it is older than ``cmd_timeout`` (then the robot stops). A
-  command with a NaN, infinite or huge value is refused and the robot stops.
-- ``plan`` (nav_msgs/Path, latched) in, as a signal only: a plan answers the
+- ``cmd_vel`` (geometry_msgs/Twist or TwistStamped, reliable) in: applied until a newer one arrives or
+  it is older than ``cmd_timeout`` (then the robot stops). A command with a
+  NaN, infinite or huge value is refused and the robot stops. One topic
+  carries one type: the node starts with TwistStamped under
+  ``enable_stamped_cmd_vel`` (Twist otherwise), then follows the type of the
+  publishers it finds on ``cmd_vel`` in other processes (checked every
+  :data:`CMD_VEL_TYPE_CHECK_PERIOD_S` of wall time), so a controller with or
+  without stamped commands drives it alike. (In one process DDS refuses a
+  publisher whose type differs from a subscription's on the same topic: set
+  the parameter alike on both nodes there.)
+- ``plan`` (nav_msgs/Path, latched or volatile publishers) in, as a signal only: a plan answers the
   goal, and the first non-empty one starts a world held by ``start_paused``;
   a malformed one (wrong frame, NaN points) is refused.
 - ``goal_pose`` (geometry_msgs/PoseStamped) out with ``publish_goal``: the
@@ -57,11 +64,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped, Twist
+from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
@@ -72,6 +79,8 @@ from fusion_planner.core.simulation.world import World
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.qos import (
+    LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS, LatchedOrVolatile)
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'simulator'
@@ -79,15 +88,10 @@ PACKAGE = 'fusion_planner'
 #: The bundled scenario, relative to the package's share folder.
 DEMO_SCENARIO = pathlib.Path('config') / 'scenarios' / 'demo.yaml'
 
-#: QoS of ``map``: latched (a late joiner gets it).
-LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: QoS of ``plan`` (listened to only to confirm the goal was taken).
-PLAN_QOS = LATCHED_QOS
-#: QoS of ``goal_pose`` (as the global planner subscribes it).
-GOAL_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-#: Queue depth of ``cmd_vel``, ``clock``, ``obstacles`` [messages].
-DEFAULT_DEPTH = 10
+#: Velocity command types ``cmd_vel`` may carry, by their ROS type name.
+CMD_VEL_TYPES = {'geometry_msgs/msg/Twist': Twist, 'geometry_msgs/msg/TwistStamped': TwistStamped}
+#: Wall period of the check of the type the ``cmd_vel`` publishers use [s].
+CMD_VEL_TYPE_CHECK_PERIOD_S = 0.25
 #: A command faster than this many times the robot's limits is refused [1].
 MAX_COMMAND_FACTOR = 10.0
 #: Wall period of the goal publisher's check [s].
@@ -124,6 +128,7 @@ class SimulatorParams:
     max_command_lag: float = 0.25
     publish_goal: bool = False
     start_paused: bool = False
+    enable_stamped_cmd_vel: bool = False
     diagnostics_period: float = 1.0
 
     def __post_init__(self):
@@ -165,6 +170,9 @@ PARAMETER_SPECS = (
                   'hold the world at t = 0 (robot and moving obstacles still, sensors and clock '
                   'still published) until the first non-empty plan appears on plan, so every '
                   'run starts when the robot can move', read_only=True),
+    ParameterSpec('enable_stamped_cmd_vel', False,
+                  'subscribe cmd_vel as TwistStamped at start-up (Twist otherwise); either way the '
+                  'node then follows the type of the cmd_vel publishers it finds', read_only=True),
     ParameterSpec('diagnostics_period', 1.0, 'wall period of the diagnostics status [s]',
                   float_range(0.05, 60.0), read_only=True),
 )
@@ -312,14 +320,18 @@ class SimulatorNode(Node):
         self._diagnostics = DiagnosticsReporter(self, 0.0)
         guard = self._diagnostics.guard
         self._map_pub = self.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
-        self._odom_pub = self.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
-        self._scan_pub = self.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
-        self._obstacles_pub = self.create_publisher(MarkerArray, 'obstacles', DEFAULT_DEPTH)
-        self._clock_pub = self.create_publisher(ClockMsg, 'clock', DEFAULT_DEPTH)
-        self._goal_pub = self.create_publisher(PoseStamped, 'goal_pose', GOAL_QOS)
-        self.create_subscription(Twist, 'cmd_vel', guard('cmd_vel', self._on_cmd_vel),
-                                 DEFAULT_DEPTH)
-        self.create_subscription(Path, 'plan', guard('plan', self._on_plan), PLAN_QOS)
+        self._odom_pub = self.create_publisher(Odometry, 'odom', RELIABLE_QOS)
+        self._scan_pub = self.create_publisher(LaserScan, 'scan', SENSOR_QOS)
+        self._obstacles_pub = self.create_publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
+        self._clock_pub = self.create_publisher(ClockMsg, 'clock', RELIABLE_QOS)
+        self._goal_pub = self.create_publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
+        self._cmd_vel_sub = self.create_subscription(
+            TwistStamped if params.enable_stamped_cmd_vel else Twist, 'cmd_vel',
+            guard('cmd_vel', self._on_cmd_vel), RELIABLE_QOS)
+        self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
+                                           ReliabilityPolicy.RELIABLE)
+        self.create_timer(CMD_VEL_TYPE_CHECK_PERIOD_S,
+                          guard('cmd_vel type', self._match_cmd_vel_type), clock=self._steady)
         self._step_timer = self._make_step_timer(params)
         self.create_timer(GOAL_CHECK_PERIOD_S, guard('goal', self._on_goal_timer),
                           clock=self._steady)
@@ -353,6 +365,23 @@ class SimulatorNode(Node):
             self._command = (0.0, 0.0)  # refused: the robot stops for this command
             raise
         self._command = (v, omega)
+
+    def _match_cmd_vel_type(self):
+        """Subscribe ``cmd_vel`` with the message type its publishers use."""
+        topic = self.resolve_topic_name('cmd_vel')
+        types = {info.topic_type for info in self.get_publishers_info_by_topic(topic)}
+        known = [CMD_VEL_TYPES[name] for name in sorted(types) if name in CMD_VEL_TYPES]
+        if len(known) != 1 or known[0] is self._cmd_vel_sub.msg_type:
+            if len(known) > 1:
+                self._diagnostics.log.warning(
+                    'cmd_vel/types', f'cmd_vel has Twist and TwistStamped publishers: '
+                                     f'listening to {self._cmd_vel_sub.msg_type.__name__} only')
+            return
+        self.destroy_subscription(self._cmd_vel_sub)
+        self._cmd_vel_sub = self.create_subscription(
+            known[0], 'cmd_vel', self._diagnostics.guard('cmd_vel', self._on_cmd_vel),
+            RELIABLE_QOS)
+        self.get_logger().info(f'cmd_vel is published as {known[0].__name__}: listening to that')
 
     def _on_plan(self, msg):
         """A plan answers the goal; the first non-empty one starts a paused world."""
