@@ -48,7 +48,7 @@ def test_every_subscription_and_service_of_every_node_is_fuzzed(context):
             target.close()
     assert fuzzed == {
         'global_planner': {'map', 'goal_pose', 'odom', 'amcl_pose', 'scan', 'get_plan'},
-        'local_planner': {'plan', 'odom', 'scan', 'obstacles'},
+        'local_planner': {'map', 'plan', 'odom', 'scan', 'obstacles'},
         'simulator': {'cmd_vel', 'plan'},
     }
 

@@ -783,7 +783,8 @@ def recorded_topics():
     return (('map', OccupancyGrid, latched), ('plan', Path, latched),
             ('plan_markers', MarkerArray, reliable), ('local_plan', Path, reliable),
             ('odom', Odometry, sensor), ('scan', LaserScan, sensor),
-            ('obstacles', MarkerArray, reliable), ('cmd_vel', Twist, reliable),
+            ('obstacles', MarkerArray, reliable), ('tracks', MarkerArray, reliable),
+            ('cmd_vel', Twist, reliable),
             ('goal_pose', PoseStamped, reliable), ('/diagnostics', DiagnosticArray, reliable))
 
 

@@ -77,8 +77,8 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 REFUSED_OUTCOMES = ('invalid_input', 'invalid_map')
 #: At most this many defects are put into one message [1].
 MAX_DEFECTS = 3
-#: Map-size limit of the fuzzed global planner [cells]: small, so that maps
-#: beyond it are cheap to send.
+#: Map-size limit of the fuzzed planners [cells]: small, so that maps beyond
+#: it are cheap to send.
 MAX_MAP_CELLS = 4000
 #: Default messages per input of the soak [1].
 DEFAULT_SOAK_MESSAGES = 10_000
@@ -857,7 +857,8 @@ class LocalPlannerTarget(FuzzTarget):
 
         super().__init__(LocalPlannerNode(context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True), Parameter('diagnostics_period', value=0.0),
-            Parameter('plan_timeout', value=0.0)]))  # no plan publisher here: never time out
+            Parameter('plan_timeout', value=0.0),  # no plan publisher here: never time out
+            Parameter('max_map_cells', value=MAX_MAP_CELLS)]))
         node = self.node
         self.dt = 1.0 / node.get_parameter('control_rate').value
         self.max_speed = node.get_parameter('max_speed').value

@@ -21,10 +21,24 @@ Topics (relative names, so a namespace or a remap applies):
   compensates the delay of a message that arrived a step late.
 - ``scan`` (sensor_msgs/LaserScan, best effort, frame =
   ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
-  points, placed in the map with the odometry pose of the scan's stamp.
-- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in:
-  tracked moving obstacles; velocities are estimated from successive
-  positions (:class:`~fusion_planner.ros.conversions.ObstacleTracker`).
+  points, placed in the map with the odometry pose of the scan's stamp, and
+  the moving obstacles: a scan tracker
+  (:class:`~fusion_planner.ros.scan_tracks.ScanTracks`) follows the returns
+  the map does not explain and reports the ones that move. A valid scan the
+  tracker cannot use (stamped more than ``scan_timeout`` before the latest
+  odometry, not newer than the last tracked one, without beams) is not
+  tracked; why is logged (rate-limited) and kept in the diagnostics value
+  ``scan_tracking``.
+- ``map`` (nav_msgs/OccupancyGrid; latched or volatile publishers) in: the
+  known map the scan tracker tells people from walls with; no scan tracks
+  until it arrives.
+- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in,
+  optional: moving obstacles tracked elsewhere; velocities are estimated
+  from successive positions
+  (:class:`~fusion_planner.ros.conversions.ObstacleTracker`). Fused with the
+  scan tracks: an obstacle from here replaces a scan track it overlaps.
+- ``tracks`` (visualization_msgs/MarkerArray) out with each tracked scan:
+  the scan tracker's moving tracks, a cylinder and a velocity arrow each.
 - ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
   ``enable_stamped_cmd_vel``, reliable) out, at ``control_rate`` on the node
   clock while a plan is followed. A TwistStamped carries the stamp of the
@@ -59,7 +73,7 @@ from dataclasses import fields, make_dataclass
 
 import numpy as np
 from geometry_msgs.msg import Twist, TwistStamped
-from nav_msgs.msg import Odometry, Path
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
@@ -67,9 +81,12 @@ from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
 from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.grid import DEFAULT_MAX_CELLS
+from fusion_planner.core.local_planning.scan_tracker import ScanVerdict
 from fusion_planner.ros import conversions as conv
-from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
-from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter, one_line
+from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.scan_tracks import ScanTracks, fuse, tracks_to_markers
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
@@ -121,6 +138,9 @@ NODE_PARAMETERS = (
      'becomes one key node (APF sub-goal) [rad]', float_range(0.0, 1.0), False, ()),
     ('plan_timeout', 1.0, 'drop the plan (stop) when no publisher of plan has been seen for this '
      'long; 0 disables [s]', float_range(0.0, 600.0), False, ()),
+    ('max_map_cells', DEFAULT_MAX_CELLS,
+     'maps with more cells are refused (no scan tracking on them) [cells]',
+     int_range(1, 400_000_000), True, ()),
     ('obstacle_timeout', conv.DEFAULT_OBSTACLE_TIMEOUT_S,
      'forget a tracked obstacle not seen for this long [s]', float_range(0.01, 60.0), True, ()),
     ('diagnostics_period', 1.0,
@@ -359,6 +379,8 @@ class LocalPlannerNode(Node):
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
         self._controller = follow.make_controller(params.controller, params.follower_params())
         self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
+        self._scan_tracks = ScanTracks(params.frame_id)
+        self._tracking_note = ''   # why the last scan was not tracked ('' when it was)
         self._plan = None          # (N, 2) path being followed [m]
         self._odom = None          # latest Odometry as (stamp [s], pose (3,), velocity (2,))
         self._odom_received = None  # node-clock time it arrived [s]
@@ -381,6 +403,9 @@ class LocalPlannerNode(Node):
         twist_type = TwistStamped if self._stamped else Twist
         self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
         self._local_plan_pub = self.create_publisher(Path, 'local_plan', RELIABLE_QOS)
+        self._tracks_pub = self.create_publisher(MarkerArray, 'tracks', RELIABLE_QOS)
+        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
+                                          ReliabilityPolicy.RELIABLE)
         self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
                                            ReliabilityPolicy.RELIABLE)
         self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
@@ -436,6 +461,41 @@ class LocalPlannerNode(Node):
                 pose = self._odom[1]
             points = conv.scan_to_points(msg, tuple(pose), self._robot_frame_id, 'scan')
             self._scan = (points, self._now_s())
+            self._track_scan(msg, pose, stamp if stamp > 0 else self._odom[0])
+
+    def _track_scan(self, msg, pose, stamp):
+        """Feed a scan taken at ``pose`` to the scan tracker; publish its tracks."""
+        if not self._scan_tracks.has_map:
+            return
+        lag = self._odom[0] - stamp
+        timeout = self._params.current.scan_timeout
+        if lag > timeout:
+            verdict = ScanVerdict(False, f'scan stamped {lag:.2f} s before the latest odometry '
+                                         f'(scan_timeout {timeout:g} s): not tracked')
+        else:
+            verdict = self._scan_tracks.update(msg, pose, stamp)
+        self._note_tracking(verdict.reason if not verdict.accepted else '')
+        if not verdict.accepted:
+            return
+        if self._tracks_pub.get_subscription_count() > 0:
+            self._tracks_pub.publish(tracks_to_markers(self._scan_tracks.report(),
+                                                       self._frame_id, self._stamp()))
+
+    def _note_tracking(self, reason):
+        """Say (once per change, rate-limited) why a valid scan was not tracked ('' when it was)."""
+        if reason == self._tracking_note:
+            return
+        self._tracking_note = reason
+        if reason:
+            self._diagnostics.log.warning('scan/not_tracked', one_line(f'scan: {reason}'))
+        self._diagnostics.update(self._level, self._message, scan_tracking=reason or 'tracking')
+
+    def _on_map(self, msg):
+        grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
+                                               max_cells=self._params.current.max_map_cells)
+        with self._lock:
+            self._scan_tracks.set_map(grid)
+        self.get_logger().info(f'map of {grid.width} x {grid.height} cells: tracking scans on it')
 
     def _on_obstacles(self, msg):
         with self._lock:
@@ -488,7 +548,9 @@ class LocalPlannerNode(Node):
             scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
             points = np.zeros((0, 2)) if self._scan is None else self._scan[0]
             obs = follow.Observation(pose=pose, velocity=velocity, obstacle_points=points,
-                                     tracked=self._tracker.obstacles(now), time=now)
+                                     tracked=fuse(self._scan_tracks.tracked(now),
+                                                  self._tracker.obstacles(now)),
+                                     time=now)
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
             # measured velocity, which an odometry glitch can put beyond them.
@@ -546,6 +608,7 @@ class LocalPlannerNode(Node):
         self._odom_history.clear()
         self._scan = None
         self._tracker.clear()
+        self._scan_tracks.clear()
         self._plan_orphaned_since = None
 
     def _on_fault(self):
