@@ -26,6 +26,7 @@ import numpy as np
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
 from fusion_planner.cli.progress import Progress
+from fusion_planner.cli.sim_command import quiet_core
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES
 from fusion_planner.core.simulation.episodes import batch_seeds, run_episode
@@ -169,8 +170,9 @@ def run(args):
         raise InvalidInput(f'need known families ({", ".join(MOVING_FAMILIES)}), positive '
                            f'--scenarios and --jobs; got {families}, {n}, {args.jobs}')
     reporter = Progress(n * len(families), 'bench dynamic', unit='scenarios')
-    rows = run_families(n, args.seed, families, args.jobs,
-                        progress=lambda done: reporter.advance(done - reporter.done))
+    with quiet_core(args):
+        rows = run_families(n, args.seed, families, args.jobs,
+                            progress=lambda done: reporter.advance(done - reporter.done))
     reporter.finish()
     summary = summarise(rows, families)
     if args.json:

@@ -42,6 +42,7 @@ from fusion_planner.bench.dynamic import MOVING_FAMILIES
 from fusion_planner.bench.local import BEAMS, MOVING_OBSTACLES, SCAN_RATE_HZ, bench_scenario
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
+from fusion_planner.cli.sim_command import quiet_core
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.scan_tracker import ScanTracker
 from fusion_planner.core.simulation.episodes import batch_seeds, run_episode
@@ -279,9 +280,10 @@ def run(args):
     updates = QUICK_UPDATES if args.quick else args.updates
     if n < 1 or updates < 1:
         raise InvalidInput(f'--scenarios and --updates must be positive, got {n} and {updates}')
-    families = [measure_family(name, functools.partial(family_scenario, name), n, args.seed)
-                for name in MOVING_FAMILIES]
-    clutter = measure_family('static clutter', clutter_scenario, n, args.seed)
+    with quiet_core(args):
+        families = [measure_family(name, functools.partial(family_scenario, name), n, args.seed)
+                    for name in MOVING_FAMILIES]
+        clutter = measure_family('static clutter', clutter_scenario, n, args.seed)
     timing = measure_update_time(updates, args.seed)
     if args.json:
         print(json.dumps(_strict({'machine': machine_summary(), 'families': families,
