@@ -37,7 +37,8 @@ DEMO_TOPICS = {
     '/map': 'nav_msgs/msg/OccupancyGrid', '/plan': 'nav_msgs/msg/Path',
     '/plan_markers': 'visualization_msgs/msg/MarkerArray', '/local_plan': 'nav_msgs/msg/Path',
     '/odom': 'nav_msgs/msg/Odometry', '/scan': 'sensor_msgs/msg/LaserScan',
-    '/obstacles': 'visualization_msgs/msg/MarkerArray', '/cmd_vel': 'geometry_msgs/msg/Twist',
+    '/obstacles': 'visualization_msgs/msg/MarkerArray', '/tracks': 'visualization_msgs/msg/MarkerArray',
+    '/cmd_vel': 'geometry_msgs/msg/Twist',
     '/goal_pose': 'geometry_msgs/msg/PoseStamped',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
 }

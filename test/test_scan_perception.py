@@ -87,17 +87,19 @@ def test_contacts_at_rest_are_told_apart_from_contacts_while_driving():
     scenario = DYNAMIC_FAMILIES['crossing'](1)
     scenario = dataclasses.replace(scenario, moving_obstacles=scenario.moving_obstacles[:1])
     radius = scenario.moving_obstacles[0].radius + scenario.robot.radius
-    poses = np.zeros((6, 3))
-    poses[:, 0] = [0.0, 0.0, 0.0, 0.1, 0.2, 0.3]          # at rest, then driving
+    poses = np.zeros((9, 3))
+    # at rest, driving on (+x), then backing away (-x) from a person ahead
+    poses[:, 0] = [0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.3, 0.2, 0.1]
     people = np.array([[5.0, 0.0], [radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
-                       [0.2 + radius - 0.01, 0.0], [5.0, 0.0]])[:, None, :]
+                       [0.2 + radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
+                       [5.0, 0.0], [0.1 + radius - 0.01, 0.0]])[:, None, :]
 
     @dataclasses.dataclass
     class Recorded:
         trajectory: np.ndarray
         obstacle_tracks: np.ndarray
 
-    assert contacts_at_rest(scenario, Recorded(poses, people)) == 1
+    assert contacts_at_rest(scenario, Recorded(poses, people)) == 2
 
 
 def test_tracking_stats_pair_tracks_with_the_truth_and_time_the_delay():

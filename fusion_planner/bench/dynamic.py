@@ -12,10 +12,12 @@ Notes
 - Scenario seeds are ``batch_seeds(N, seed)`` of each family: a new
   ``--seed`` gives scenarios the controller was never tuned on.
 - **Avoidable contacts**: every contact with a static obstacle, and every
-  contact with a moving obstacle that began while the robot was moving
-  (faster than :data:`AT_REST_MPS`). A contact that begins while the robot
-  stands still is a person walking into it (people here ignore the robot),
-  which no controller of a robot at rest can prevent (passive safety).
+  contact with a moving obstacle except those that began while the robot
+  stood still (slower than :data:`AT_REST_MPS`) or was backing away from
+  that obstacle (moving away from it faster than :data:`AT_REST_MPS`): then
+  the person walked into the robot (people here ignore it), which the robot
+  could not prevent by its own motion (passive safety: a robot in motion is
+  responsible for its contacts, one at rest or retreating is not).
 """
 
 import concurrent.futures
@@ -36,7 +38,8 @@ from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 EXIT_OK = 0
 #: The scenario families whose difficulty includes moving obstacles.
 MOVING_FAMILIES = ('mixed', 'corridors') + tuple(DYNAMIC_FAMILIES)
-#: Below this speed [m/s] the robot is at rest when a contact begins.
+#: Below this speed [m/s] the robot is at rest when a contact begins; above
+#: it, away from the obstacle, it is retreating.
 AT_REST_MPS = 0.05
 #: Default scenarios per family and batch seed; quick mode's scenarios.
 DEFAULT_SCENARIOS = 50
@@ -45,7 +48,7 @@ QUICK_SCENARIOS = 1
 
 
 def contacts_at_rest(scenario, result):
-    """Contacts with moving obstacles that began while the robot stood still.
+    """Contacts with moving obstacles that began while the robot stood still or retreated.
 
     Parameters
     ----------
@@ -64,8 +67,13 @@ def contacts_at_rest(scenario, result):
     gaps = np.hypot(*(centres - poses[:, None, 0:2]).transpose(2, 0, 1)) - radii
     overlap = (gaps < scenario.robot.radius).any(axis=1)
     begins = np.flatnonzero(overlap[1:] & ~overlap[:-1]) + 1
-    speed = np.hypot(*(poses[begins, 0:2] - poses[begins - 1, 0:2]).T) / scenario.limits.dt
-    return int(np.sum(speed < AT_REST_MPS))
+    velocity = (poses[begins, 0:2] - poses[begins - 1, 0:2]) / scenario.limits.dt
+    touched = centres[begins, np.argmin(gaps[begins], axis=1)]           # (B, 2)
+    towards = touched - poses[begins, 0:2]
+    closing = np.einsum('ij,ij->i', velocity, towards) / np.maximum(
+        np.hypot(*towards.T), 1e-9)
+    at_rest = np.hypot(*velocity.T) < AT_REST_MPS
+    return int(np.sum(at_rest | (closing < -AT_REST_MPS)))
 
 
 def run_one(family, scenario_seed):
