@@ -14,7 +14,8 @@ def test_tracker_bench_reports_every_figure(capsys):
     assert [f['family'] for f in report['families']] == [
         'mixed', 'corridors', 'crossing', 'crowd', 'blind-corner', 'fast-obstacle']
     for row in report['families'] + [report['clutter']]:
-        assert {'velocity_error', 'delay_s', 'unusable_sightings', 'false_tracks_per_min'} <= set(row)
+        assert {'velocity_error', 'delay_s', 'unusable_sightings',
+                'false_tracks_per_min'} <= set(row)
     timing = report['update_time']
     assert timing['updates'] == 30 and timing['update_ms']['median'] > 0
     assert timing['scene'] == {'beams': 720, 'moving_obstacles': 20, 'seed': 11}

@@ -85,7 +85,8 @@ def test_local_planner_avoids_a_walker_with_no_obstacles_publisher(context, tmp_
         # the walker crossed close in front of the robot: an encounter, not a stroll
         poses = np.array(recorder.poses)[:, 0:2]
         walker_at = np.array(recorder.tracks)[:, 0, :]
-        index = np.searchsorted(recorder.track_times, recorder.pose_times).clip(0, len(walker_at) - 1)
+        index = np.searchsorted(recorder.track_times, recorder.pose_times)
+        index = index.clip(0, len(walker_at) - 1)
         assert np.hypot(*(poses - walker_at[index]).T).min() < 1.5
         goal = scenario.goal
         assert math.hypot(poses[-1, 0] - goal[0], poses[-1, 1] - goal[1]) \

@@ -147,29 +147,34 @@ def format_report(summary, n, seed):
     return '\n'.join(lines)
 
 
+def add_batch_arguments(parser, default_scenarios, default_seed, quick_help):
+    """``--scenarios``, ``--seed``, ``--quick``, ``--json`` of a benchmark over families."""
+    parser.add_argument('--scenarios', type=int, default=default_scenarios, metavar='N',
+                        help='scenarios per family (default %(default)s)')
+    parser.add_argument('--seed', type=int, default=default_seed,
+                        help='batch seed of the scenarios (default %(default)s)')
+    parser.add_argument('--quick', action='store_true', help=quick_help)
+    parser.add_argument('--json', action='store_true', help='print one JSON object')
+
+
 def add_arguments(parser):
     """Options of ``fusion-planner bench dynamic``."""
-    parser.add_argument('--scenarios', type=int, default=DEFAULT_SCENARIOS, metavar='N',
-                        help='scenarios per family (default %(default)s)')
-    parser.add_argument('--seed', type=int, default=DEFAULT_SEED,
-                        help='batch seed (default %(default)s)')
+    add_batch_arguments(parser, DEFAULT_SCENARIOS, DEFAULT_SEED,
+                        f'{QUICK_SCENARIOS} scenario per family')
     parser.add_argument('--family', action='append', metavar='NAME',
                         help=f'one of {", ".join(MOVING_FAMILIES)}; repeat for several '
                              '(default all)')
     parser.add_argument('--jobs', type=int, default=1, metavar='J',
                         help='worker processes (default 1; results do not depend on it)')
-    parser.add_argument('--quick', action='store_true',
-                        help=f'{QUICK_SCENARIOS} scenario per family')
-    parser.add_argument('--json', action='store_true', help='print one JSON object')
 
 
 def run(args):
-    """Run the benchmark; 0 when it ran.
+    """Run every family under both perceptions and print the table; 0 when it ran.
 
     Raises
     ------
     InvalidInput
-        Bad options.
+        Unknown family, or a non-positive count.
     """
     n = QUICK_SCENARIOS if args.quick else args.scenarios
     families = args.family or list(MOVING_FAMILIES)

@@ -38,7 +38,7 @@ import time
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from fusion_planner.bench.dynamic import MOVING_FAMILIES
+from fusion_planner.bench.dynamic import MOVING_FAMILIES, add_batch_arguments
 from fusion_planner.bench.local import BEAMS, MOVING_OBSTACLES, SCAN_RATE_HZ, bench_scenario
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
@@ -134,7 +134,8 @@ class MeasuredPerception(ScanPerception):
     def tracked(self, world, scan):
         """The scan perception's tracks; the stats observe them against the truth."""
         tracked = super().tracked(world, scan)
-        self.stats.observe(world.time, self.tracker.report(), world.tracked_obstacles(), scan.points)
+        self.stats.observe(world.time, self.tracker.report(), world.tracked_obstacles(),
+                           scan.points)
         return tracked
 
 
@@ -257,24 +258,19 @@ def _pair(spread):
 
 def add_arguments(parser):
     """Options of ``fusion-planner bench tracker``."""
-    parser.add_argument('--scenarios', type=int, default=DEFAULT_SCENARIOS, metavar='N',
-                        help='scenarios per family and of clutter (default %(default)s)')
-    parser.add_argument('--seed', type=int, default=DEFAULT_SEED,
-                        help='batch seed of the scenarios (default %(default)s)')
+    add_batch_arguments(parser, DEFAULT_SCENARIOS, DEFAULT_SEED,
+                        f'{QUICK_SCENARIOS} scenario per family, {QUICK_UPDATES} updates')
     parser.add_argument('--updates', type=int, default=DEFAULT_UPDATES, metavar='N',
                         help='timed tracker updates (default %(default)s)')
-    parser.add_argument('--quick', action='store_true',
-                        help=f'{QUICK_SCENARIOS} scenario per family, {QUICK_UPDATES} updates')
-    parser.add_argument('--json', action='store_true', help='print one JSON object')
 
 
 def run(args):
-    """Run the benchmark; 0 when it ran.
+    """Measure the tracker on every family, on clutter and on the clock; 0 when it ran.
 
     Raises
     ------
     InvalidInput
-        Bad options.
+        A non-positive count.
     """
     n = QUICK_SCENARIOS if args.quick else args.scenarios
     updates = QUICK_UPDATES if args.quick else args.updates

@@ -147,19 +147,24 @@ class TrackerParams:
         for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
                      'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and not isinstance(value, bool)
-                    and math.isfinite(value) and value > 0):
-                raise InvalidInput(f'TrackerParams.{name} must be a finite number > 0, got {value!r}')
+            _check_real(name, getattr(self, name), zero_ok=False)
         for name in ('min_speed', 'min_travel'):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and not isinstance(value, bool)
-                    and math.isfinite(value) and value >= 0):
-                raise InvalidInput(f'TrackerParams.{name} must be a finite number >= 0, got {value!r}')
+            _check_real(name, getattr(self, name), zero_ok=True)
         for name in ('min_points', 'confirm_hits', 'max_tracks'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise InvalidInput(f'TrackerParams.{name} must be a positive integer, got {value!r}')
+                raise InvalidInput(
+                    f'TrackerParams.{name} must be a positive integer, got {value!r}')
+
+
+def _check_real(name, value, zero_ok):
+    """Raise InvalidInput unless ``value`` is a finite real > 0 (>= 0 with ``zero_ok``)."""
+    ok = (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+          and (value >= 0 if zero_ok else value > 0))
+    if not ok:
+        relation = '>=' if zero_ok else '>'
+        raise InvalidInput(f'TrackerParams.{name} must be a finite number {relation} 0, '
+                           f'got {value!r}')
 
 
 @dataclass(frozen=True)
@@ -407,7 +412,8 @@ class ScanTracker:
         p = self.params
         speed = np.hypot(self._x[:, 2], self._x[:, 3])
         travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
-        starts = (self._hits >= p.confirm_hits) & (travelled >= p.min_travel) & (speed >= p.min_speed)
+        starts = ((self._hits >= p.confirm_hits) & (travelled >= p.min_travel)
+                  & (speed >= p.min_speed))
         stops = self._moving & (speed < 0.5 * p.min_speed)
         # a stopped track must travel min_travel again from where it stopped
         self._birth[stops] = self._x[stops, 0:2]

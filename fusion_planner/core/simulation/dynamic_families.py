@@ -32,7 +32,7 @@ Examples
 ('blind-corner-3', 1)
 """
 
-import math
+import functools
 
 import numpy as np
 
@@ -99,117 +99,127 @@ def pacer(rng, line_start, line_end, meet, speed, lead_s):
     return WaypointMotion((tuple(begin), tuple(b), tuple(a)), speed)
 
 
-def crossing(seed):
-    """People crossing the robot's way (see the module notes)."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
+def _draw_crossing(rng):
+    """One draw of people crossing the robot's way: ``(grid, start, goal, moving)``."""
+    grid = hall(14.0, 8.0)
+    y0, y1 = rng.uniform(2.5, 5.5, size=2)
+    start, goal = (1.2, y0, float(rng.uniform(-0.5, 0.5))), (12.8, y1)
+    moving = []
+    for x in np.sort(rng.uniform(3.5, 10.5, size=int(rng.integers(1, 4)))):
+        speed = float(rng.uniform(0.4, 1.0))
+        up = rng.random() < 0.5
+        ends = [(x + rng.uniform(-1.5, 1.5), 0.6), (x + rng.uniform(-1.5, 1.5), 7.4)]
+        if not up:
+            ends.reverse()
+        cross_y = y0 + (y1 - y0) * (x - 1.2) / 11.6
+        meet = np.array(ends[0]) + (np.array(ends[1]) - ends[0]) * \
+            (cross_y - ends[0][1]) / (ends[1][1] - ends[0][1])
+        moving.append(MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
+            rng, ends[0], ends[1], meet, speed, (x - 1.2) / ROBOT_CRUISE)))
+    return grid, start, goal, moving
+
+
+def _draw_crowd(rng):
+    """One draw of five to ten wandering people: ``(grid, start, goal, moving)``."""
+    grid = hall(14.0, 10.0)
+    start, goal = (1.2, float(rng.uniform(2.0, 8.0)), 0.0), (12.8, float(rng.uniform(2.0, 8.0)))
+    moving = []
+    while len(moving) < int(rng.integers(5, 11)):
+        p = rng.uniform([3.0, 1.0], [11.0, 9.0])
+        radius = float(rng.uniform(*PERSON_RADIUS))
+        if min(np.hypot(*(p - start[:2])), np.hypot(*(p - goal))) < 2.0 or any(
+                np.hypot(*(p - m.motion.position)) < radius + m.radius + 0.3 for m in moving):
+            continue
+        moving.append(MovingObstacle(radius, RandomWalkMotion(
+            (float(p[0]), float(p[1])), float(rng.uniform(0.3, 0.7)),
+            float(rng.uniform(0.3, 0.8)))))
+    return grid, start, goal, moving
+
+
+def _draw_blind_corner(rng):
+    """One draw of a person out of a side corridor: ``(grid, start, goal, moving)``."""
+    rows, cols = 90, 140
+    occupied = np.ones((rows, cols), bool)
+    main_lo, main_hi = 35, 55                             # main corridor y = 3.5 .. 5.5 m
+    occupied[main_lo:main_hi, 1:-1] = False
+    side_x = float(rng.uniform(5.0, 10.0))
+    side_w = float(rng.uniform(1.2, 2.0))
+    c0, c1 = int(side_x / RESOLUTION), int((side_x + side_w) / RESOLUTION)
+    north = rng.random() < 0.5
+    if north:
+        occupied[main_hi:rows - 1, c0:c1] = False
+    else:
+        occupied[1:main_lo, c0:c1] = False
+    grid = GridMap(occupied, RESOLUTION)
+    start = (1.0, float(rng.uniform(4.0, 5.0)), float(rng.uniform(-0.3, 0.3)))
+    goal = (13.0, float(rng.uniform(4.0, 5.0)))
+    x = side_x + side_w / 2
+    deep, far = (8.5, 3.8) if north else (0.5, 5.2)
+    speed = float(rng.uniform(0.6, 1.0))
+    meet = (x, 4.5)
+    person = MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
+        rng, (x, deep), (x, far), meet, speed, (x - start[0]) / ROBOT_CRUISE))
+    return grid, start, goal, [person]
+
+
+def _draw_fast_obstacle(rng):
+    """One draw of an obstacle as fast as the robot: ``(grid, start, goal, moving)``."""
+    grid = hall(14.0, 8.0)
+    y = float(rng.uniform(2.5, 5.5))
+    start, goal = (1.2, y, 0.0), (12.8, y + float(rng.uniform(-1.0, 1.0)))
+    radius = float(rng.uniform(0.25, 0.35))
+    if rng.random() < 0.5:
+        offset = float(rng.uniform(-0.4, 0.4))
+        motion = pacer(rng, (13.0, y + offset), (1.0, y + offset), (7.0, y + offset),
+                       ROBOT.max_speed, 5.8 / (ROBOT_CRUISE + ROBOT.max_speed))
+    else:
+        x = float(rng.uniform(4.0, 10.0))
+        motion = pacer(rng, (x, 0.6), (x, 7.4), (x, y), ROBOT.max_speed,
+                       (x - 1.2) / ROBOT_CRUISE)
+    moving = [MovingObstacle(radius, motion)]
+    if rng.random() < 0.5:
+        x = float(rng.uniform(4.0, 10.0))
+        moving.append(MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
+            rng, (x, 7.4), (x, 0.6), (x, y), float(rng.uniform(0.3, 0.6)),
+            (x - 1.2) / ROBOT_CRUISE)))
+    return grid, start, goal, moving
+
+
+def generate(family, seed):
+    """The scenario of a dynamic family for a seed.
+
+    Parameters
+    ----------
+    family : str
+        A key of :data:`DYNAMIC_FAMILIES`.
+    seed : int
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    InvalidInput
+        No valid scenario within :data:`MAX_ATTEMPTS` draws.
+    """
+    salt, draw = _DRAWS[family]
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), salt]))
     for _ in range(MAX_ATTEMPTS):
-        grid = hall(14.0, 8.0)
-        y0, y1 = rng.uniform(2.5, 5.5, size=2)
-        start, goal = (1.2, y0, float(rng.uniform(-0.5, 0.5))), (12.8, y1)
-        moving = []
-        for x in np.sort(rng.uniform(3.5, 10.5, size=int(rng.integers(1, 4)))):
-            speed = float(rng.uniform(0.4, 1.0))
-            up = rng.random() < 0.5
-            ends = [(x + rng.uniform(-1.5, 1.5), 0.6), (x + rng.uniform(-1.5, 1.5), 7.4)]
-            if not up:
-                ends.reverse()
-            cross_y = y0 + (y1 - y0) * (x - 1.2) / 11.6
-            meet = np.array(ends[0]) + (np.array(ends[1]) - ends[0]) * \
-                (cross_y - ends[0][1]) / (ends[1][1] - ends[0][1])
-            moving.append(MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
-                rng, ends[0], ends[1], meet, speed, (x - 1.2) / ROBOT_CRUISE)))
-        scenario = scenario_of('crossing', seed, grid, start, goal, moving)
+        scenario = scenario_of(family, seed, *draw(rng))
         if scenario is not None:
             return scenario
-    raise InvalidInput(f'no crossing scenario for seed {seed}')
+    raise InvalidInput(f'no {family} scenario for seed {seed}')
 
 
-def crowd(seed):
-    """Five to ten people wandering across the robot's way (see the module notes)."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 2]))
-    for _ in range(MAX_ATTEMPTS):
-        grid = hall(14.0, 10.0)
-        start, goal = (1.2, float(rng.uniform(2.0, 8.0)), 0.0), (12.8, float(rng.uniform(2.0, 8.0)))
-        moving = []
-        while len(moving) < int(rng.integers(5, 11)):
-            p = rng.uniform([3.0, 1.0], [11.0, 9.0])
-            radius = float(rng.uniform(*PERSON_RADIUS))
-            if min(np.hypot(*(p - start[:2])), np.hypot(*(p - goal))) < 2.0 or any(
-                    np.hypot(*(p - m.motion.position)) < radius + m.radius + 0.3 for m in moving):
-                continue
-            moving.append(MovingObstacle(radius, RandomWalkMotion(
-                (float(p[0]), float(p[1])), float(rng.uniform(0.3, 0.7)),
-                float(rng.uniform(0.3, 0.8)))))
-        scenario = scenario_of('crowd', seed, grid, start, goal, moving)
-        if scenario is not None:
-            return scenario
-    raise InvalidInput(f'no crowd scenario for seed {seed}')
-
-
-def blind_corner(seed):
-    """A person stepping out of a side corridor (see the module notes)."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 3]))
-    for _ in range(MAX_ATTEMPTS):
-        rows, cols = 90, 140
-        occupied = np.ones((rows, cols), bool)
-        main_lo, main_hi = 35, 55                             # main corridor y = 3.5 .. 5.5 m
-        occupied[main_lo:main_hi, 1:-1] = False
-        side_x = float(rng.uniform(5.0, 10.0))
-        side_w = float(rng.uniform(1.2, 2.0))
-        c0, c1 = int(side_x / RESOLUTION), int((side_x + side_w) / RESOLUTION)
-        north = rng.random() < 0.5
-        if north:
-            occupied[main_hi:rows - 1, c0:c1] = False
-        else:
-            occupied[1:main_lo, c0:c1] = False
-        grid = GridMap(occupied, RESOLUTION)
-        start = (1.0, float(rng.uniform(4.0, 5.0)), float(rng.uniform(-0.3, 0.3)))
-        goal = (13.0, float(rng.uniform(4.0, 5.0)))
-        x = side_x + side_w / 2
-        deep, far = (8.5, 3.8) if north else (0.5, 5.2)
-        speed = float(rng.uniform(0.6, 1.0))
-        meet = (x, 4.5)
-        person = MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
-            rng, (x, deep), (x, far), meet, speed, (x - start[0]) / ROBOT_CRUISE))
-        scenario = scenario_of('blind-corner', seed, grid, start, goal, [person])
-        if scenario is not None:
-            return scenario
-    raise InvalidInput(f'no blind-corner scenario for seed {seed}')
-
-
-def fast_obstacle(seed):
-    """An obstacle as fast as the robot, head-on or crossing (see the module notes)."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 4]))
-    for _ in range(MAX_ATTEMPTS):
-        grid = hall(14.0, 8.0)
-        y = float(rng.uniform(2.5, 5.5))
-        start, goal = (1.2, y, 0.0), (12.8, y + float(rng.uniform(-1.0, 1.0)))
-        radius = float(rng.uniform(0.25, 0.35))
-        if rng.random() < 0.5:
-            offset = float(rng.uniform(-0.4, 0.4))
-            motion = pacer(rng, (13.0, y + offset), (1.0, y + offset), (7.0, y + offset),
-                           ROBOT.max_speed, 5.8 / (ROBOT_CRUISE + ROBOT.max_speed))
-        else:
-            x = float(rng.uniform(4.0, 10.0))
-            motion = pacer(rng, (x, 0.6), (x, 7.4), (x, y), ROBOT.max_speed,
-                           (x - 1.2) / ROBOT_CRUISE)
-        moving = [MovingObstacle(radius, motion)]
-        if rng.random() < 0.5:
-            x = float(rng.uniform(4.0, 10.0))
-            moving.append(MovingObstacle(float(rng.uniform(*PERSON_RADIUS)), pacer(
-                rng, (x, 7.4), (x, 0.6), (x, y), float(rng.uniform(0.3, 0.6)),
-                (x - 1.2) / ROBOT_CRUISE)))
-        scenario = scenario_of('fast-obstacle', seed, grid, start, goal, moving)
-        if scenario is not None:
-            return scenario
-    raise InvalidInput(f'no fast-obstacle scenario for seed {seed}')
-
+#: Family name -> (seed salt, draw of one attempt).
+_DRAWS = {
+    'crossing': (1, _draw_crossing),
+    'crowd': (2, _draw_crowd),
+    'blind-corner': (3, _draw_blind_corner),
+    'fast-obstacle': (4, _draw_fast_obstacle),
+}
 
 #: Family name -> generator ``seed -> Scenario``.
-DYNAMIC_FAMILIES = {
-    'crossing': crossing,
-    'crowd': crowd,
-    'blind-corner': blind_corner,
-    'fast-obstacle': fast_obstacle,
-}
+DYNAMIC_FAMILIES = {name: functools.partial(generate, name) for name in _DRAWS}
 
