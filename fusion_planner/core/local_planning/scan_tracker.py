@@ -20,14 +20,17 @@ controller avoids (:attr:`Observation.tracked`):
    start tentative tracks (at rest, velocity uncertain); a
    tentative track that misses a scan, or any track unseen for
    ``coast_time``, is dropped.
-5. **Report**: only tracks that move (:mod:`hit_ages` tells an object
-   that stays in the same cells from one that moves). A track is *moving* once it has been
+5. **Report**: only tracks that move. A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
-   it was born (a static object's centre estimate shifts less as the view
-   changes), and its speed is at least ``min_speed``; it stays moving until
-   its speed falls below half of that, and must then travel ``min_travel``
-   again. Everything else
-   (static unknown obstacles, people standing still) stays scan points.
+   it was born, and its speed is at least ``min_speed``; it stays moving
+   until its speed falls below half of that, and must then travel
+   ``min_travel`` again. A static object's centre estimate shifts as the
+   view changes, so a track also stops moving while most of its returns
+   fall in cells hit without a break for ``static_age`` (:mod:`hit_ages`),
+   unless it has gone farther than ``max_object_radius`` from where it first
+   appeared (no change of view moves a centre that far; a slow person keeps
+   hitting the same cells for a while). Everything else (static unknown
+   obstacles, people standing still) stays scan points.
 
 Deterministic: the same scans give the same tracks (no randomness; ties in
 the assignment are broken by index). Vectorised over beams, candidates and
@@ -118,7 +121,8 @@ class TrackerParams:
         Weight in (0, 1] of a new radius in a track's running mean.
     static_age : float
         A candidate with most of its returns in cells hit without a break for
-        this long [s] stays put: its track is not moving.
+        this long [s] stays put: its track is not moving (unless it has gone
+        farther than ``max_object_radius`` from where it first appeared).
     hit_break : float
         A cell not hit for longer than this [s] starts a new run of hits.
     max_tracks : int
@@ -240,7 +244,8 @@ class ScanTracker:
         self._radius = np.zeros(0)
         self._hits = np.zeros(0, np.int64)
         self._last_seen = np.zeros(0)
-        self._birth = np.zeros((0, 2))
+        self._birth = np.zeros((0, 2))     # where each track must travel min_travel from [m]
+        self._origin = np.zeros((0, 2))    # where each track first appeared [m]
         self._moving = np.zeros(0, bool)
 
     def update(self, angles, ranges, origin, time):
@@ -288,6 +293,8 @@ class ScanTracker:
         # an object whose returns stay in the same cells is not moving, whatever
         # its centre estimate does as the view changes; it must travel again
         still = track_of[matched & staying]
+        still = still[np.hypot(*(self._x[still, 0:2] - self._origin[still]).T)
+                      <= p.max_object_radius]
         self._moving[still] = False
         self._birth[still] = self._x[still, 0:2]
         self._drop_lost()
@@ -406,6 +413,7 @@ class ScanTracker:
         self._hits = np.concatenate([self._hits, np.ones(n, np.int64)])
         self._last_seen = np.concatenate([self._last_seen, np.full(n, self.time)])
         self._birth = np.concatenate([self._birth, centers])
+        self._origin = np.concatenate([self._origin, centers])
         self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
 
     def _mark_moving(self):
@@ -423,6 +431,7 @@ class ScanTracker:
         self._ids, self._x, self._p = self._ids[mask], self._x[mask], self._p[mask]
         self._radius, self._hits = self._radius[mask], self._hits[mask]
         self._last_seen, self._birth = self._last_seen[mask], self._birth[mask]
+        self._origin = self._origin[mask]
         self._moving = self._moving[mask]
 
 
