@@ -23,11 +23,11 @@ Notes
   runs are generated scenarios with 3-6 unknown static obstacles and the
   moving obstacles removed.
 - **Update time**: CPU time (``time.process_time``) of
-  ``ScanTracker.update`` on scans of :func:`fusion_planner.bench.local.bench_scenario`
+  ``ScanTracker.update`` on the scans of :func:`crowd_around_the_robot`
   (:data:`~fusion_planner.bench.local.BEAMS` beams,
-  :data:`~fusion_planner.bench.local.MOVING_OBSTACLES` moving obstacles, 1 cm
-  noise) with the robot standing, next to the simulated laser's own ray cast
-  of the same scans (the peer).
+  :data:`~fusion_planner.bench.local.MOVING_OBSTACLES` people in view of a
+  standing robot, 1 cm noise), next to the simulated laser's own ray cast of
+  the same scans (the peer).
 """
 
 import dataclasses
@@ -39,7 +39,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from fusion_planner.bench.dynamic import MOVING_FAMILIES, add_batch_arguments
-from fusion_planner.bench.local import BEAMS, MOVING_OBSTACLES, SCAN_RATE_HZ, bench_scenario
+from fusion_planner.bench.local import BEAMS, MOVING_OBSTACLES, SCAN_RATE_HZ
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
 from fusion_planner.cli.sim_command import quiet_core
@@ -49,7 +49,9 @@ from fusion_planner.core.simulation.episodes import batch_seeds, run_episode
 from fusion_planner.core.simulation.families import family_scenario
 from fusion_planner.core.simulation.perception import ScanPerception
 from fusion_planner.core.simulation.scenario import RandomScenarioConfig, random_scenario
-from fusion_planner.core.simulation.world import World
+from fusion_planner.core.simulation.dynamic_families import hall
+from fusion_planner.core.simulation.world import (
+    BounceMotion, MovingObstacle, RobotSpec, ScanConfig, World)
 
 EXIT_OK = 0
 #: A track and a true obstacle farther apart than this [m] are not a pair.
@@ -189,20 +191,51 @@ def clutter_scenario(scenario_seed):
     return dataclasses.replace(scenario, name=f'clutter-{scenario_seed}', moving_obstacles=())
 
 
+def crowd_around_the_robot(seed):
+    """The timing scene: a standing robot with a 720-beam laser among 20 people in view.
+
+    A walled 20 x 20 m hall at 0.1 m, the robot in its middle; the people
+    (radius 0.2-0.3 m, 0.3-1.0 m/s, bouncing) start 1.5-7 m from it, apart
+    from one another.
+
+    Returns
+    -------
+    grid : GridMap
+    world : World
+    """
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7]))
+    grid = hall(20.0, 20.0)
+    centre = np.array([10.0, 10.0])
+    people = []
+    while len(people) < MOVING_OBSTACLES:
+        distance, bearing = rng.uniform(1.5, 7.0), rng.uniform(-np.pi, np.pi)
+        p = centre + distance * np.array([np.cos(bearing), np.sin(bearing)])
+        radius, speed, heading = rng.uniform(0.2, 0.3), rng.uniform(0.3, 1.0), \
+            rng.uniform(-np.pi, np.pi)
+        if any(np.hypot(*(p - q.motion.position)) < radius + q.radius + 0.3 for q in people):
+            continue
+        people.append(MovingObstacle(float(radius), BounceMotion(
+            (float(p[0]), float(p[1])),
+            (float(speed * np.cos(heading)), float(speed * np.sin(heading))))))
+    world = World(grid, RobotSpec(radius=0.2), (10.0, 10.0, 0.0), moving_obstacles=people,
+                  scan_config=ScanConfig(beams=BEAMS, range_max=8.0, noise_std=0.01), seed=seed)
+    return grid, world
+
+
 def measure_update_time(updates, seed):
     """CPU time of tracker updates and of the simulated laser on the same scans.
 
     Returns
     -------
     dict
-        ``update_ms`` and ``scan_ms`` (median, p95), ``updates``, ``tracks``
-        (median number of moving tracks reported), the scene.
+        ``update_ms`` and ``scan_ms`` (median, p95), ``updates``, the
+        medians of the moving obstacles ``seen`` per scan, of the ``live``
+        tracks (moving or not) and of the moving ``tracks`` reported, the
+        scene.
     """
-    scenario = bench_scenario(seed)
-    world = World(scenario.grid, scenario.robot, scenario.start, scenario.unknown_obstacles,
-                  scenario.moving_obstacles, scenario.scan, seed=scenario.seed)
-    tracker = ScanTracker(scenario.grid)
-    update_s, scan_s, tracks = [], [], []
+    grid, world = crowd_around_the_robot(seed)
+    tracker = ScanTracker(grid)
+    update_s, scan_s, tracks, live, seen = [], [], [], [], []
     period = 1.0 / SCAN_RATE_HZ
     for _ in range(updates):
         c0 = time.process_time()
@@ -213,9 +246,12 @@ def measure_update_time(updates, seed):
         scan_s.append(c1 - c0)
         update_s.append(c2 - c1)
         tracks.append(len(tracker.report().ids))
+        live.append(tracker.live_tracks)
+        seen.append(sum(_seen(obstacle, scan.points) for obstacle in world.tracked_obstacles()))
         world.step(0.0, 0.0, period)
     return {'updates': updates, 'update_ms': _spread(1e3 * np.array(update_s)),
             'scan_ms': _spread(1e3 * np.array(scan_s)), 'tracks': float(np.median(tracks)),
+            'live': float(np.median(live)), 'seen': float(np.median(seen)),
             'scene': {'beams': BEAMS, 'moving_obstacles': MOVING_OBSTACLES, 'seed': seed}}
 
 
@@ -242,7 +278,8 @@ def format_report(families, clutter, timing):
             f'{row["false_tracks_per_min"]:.2f} |')
     u, s = timing['update_ms'], timing['scan_ms']
     lines += ['', f'update time, {BEAMS} beams, {MOVING_OBSTACLES} moving obstacles '
-                  f'({timing["updates"]} updates, median {timing["tracks"]:.0f} moving tracks):',
+                  f'({timing["updates"]} updates; medians: {timing["seen"]:.0f} obstacles seen, '
+                  f'{timing["live"]:.0f} live tracks, {timing["tracks"]:.0f} moving tracks):',
               f'  tracker update: median {u["median"]:.3f} ms, p95 {u["p95"]:.3f} ms '
               f'= {u["median"] / TARGET_UPDATE_MS:.2f}x the {TARGET_UPDATE_MS:g} ms target',
               f'  simulated laser (peer): median {s["median"]:.3f} ms, p95 {s["p95"]:.3f} ms; '

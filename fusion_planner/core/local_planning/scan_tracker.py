@@ -324,6 +324,11 @@ class ScanTracker:
         return TrackReport(ids=self._ids[keep].copy(), states=states,
                            covariances=self._p[keep].copy(), radii=self._radius[keep].copy())
 
+    @property
+    def live_tracks(self):
+        """Number of tracks alive, moving or not (the work of an update)."""
+        return len(self._ids)
+
     def reset(self):
         """Forget every track (e.g. after a clock jump)."""
         self.__init__(self.grid, self.params)
