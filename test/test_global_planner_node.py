@@ -30,6 +30,8 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core import raster
@@ -37,6 +39,7 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.global_planning.planner import GlobalPlanner
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros import fuzz
+from fusion_planner.ros.goal_outcome import controller_outcome_msg
 from fusion_planner.ros.global_planner import (
     LATCHED_QOS, PARAMETER_SPECS, GlobalPlannerNode, nearest_free_goal)
 
@@ -122,6 +125,11 @@ class Harness:
         t.create_subscription(DiagnosticArray, '/diagnostics',
                               lambda m: self.statuses.extend(m.status), 10)
         self.client = t.create_client(GetPlan, 'get_plan')
+        self.goal_outcomes = []
+        t.create_subscription(String, 'goal_outcome',
+                              lambda m: self.goal_outcomes.append(m.data), 10)
+        self.controller_outcome_pub = t.create_publisher(DiagnosticStatus, 'controller_outcome', 10)
+        self.cancel_client = t.create_client(Trigger, 'cancel_goal')
         self.executor = SingleThreadedExecutor(context=ctx)
         self.executor.add_node(self.planner)
         self.executor.add_node(t)
@@ -156,6 +164,12 @@ class Harness:
         else:
             self.odom_pub.publish(odom_msg(*start))
         assert self.spin_until(lambda: self.planner._start is not None), 'odom not received'
+
+    def call_cancel(self):
+        assert self.cancel_client.wait_for_service(timeout_sec=TIMEOUT_S)
+        future = self.cancel_client.call_async(Trigger.Request())
+        assert self.spin_until(future.done)
+        return future.result()
 
     def send_goal(self, x, y, frame='map'):
         count = len(self.plans)
@@ -271,6 +285,48 @@ def test_new_map_blocking_the_plan_triggers_replan(harness):
     harness.map_pub.publish(map_msg(wall_map(block_low=True, block_high=True)))
     assert harness.spin_until(lambda: len(harness.plans[-1].poses) == 0)
     assert harness.spin_until(lambda: 'no_valid_path' in harness.outcomes())
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['no_path'])
+    # The goal ended: reopening the way resumes nothing.
+    count = len(harness.plans)
+    harness.map_pub.publish(map_msg(wall_map()))
+    harness.spin_for(1.0)
+    assert len(harness.plans) == count and harness.goal_outcomes == ['no_path']
+
+
+def test_every_goal_ends_with_exactly_one_outcome(harness):
+    harness.setup_world()
+    assert harness.send_goal(*GOAL)
+    assert harness.send_goal(GOAL[0], GOAL[1] - 0.5)  # replaces the first
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['preempted'])
+
+    # The local planner's outcome of an older plan is ignored; of the current one, taken.
+    plan_stamp = conv.stamp_to_nanoseconds(harness.plans[-1].header.stamp)
+    harness.controller_outcome_pub.publish(
+        controller_outcome_msg('reached', plan_stamp - 1, '', '/local_planner'))
+    harness.spin_for(0.5)
+    assert harness.goal_outcomes == ['preempted']
+    count = len(harness.plans)
+    harness.controller_outcome_pub.publish(
+        controller_outcome_msg('reached', plan_stamp, '', '/local_planner'))
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['preempted', 'reached'])
+    assert harness.spin_until(lambda: len(harness.plans) > count)
+    assert len(harness.plans[-1].poses) == 0, 'a late follower must not drive the old plan'
+    assert harness.diag_values()['goal_outcome'] == 'reached'
+
+    # Cancel: the plan empties, the outcome is cancelled; a second cancel has nothing to end.
+    assert harness.send_goal(*GOAL)
+    assert harness.call_cancel().success
+    assert harness.spin_until(lambda: harness.goal_outcomes[-1:] == ['cancelled'])
+    assert harness.spin_until(lambda: len(harness.plans[-1].poses) == 0)
+    again = harness.call_cancel()
+    assert not again.success and 'no goal' in again.message
+    # Nothing resumes the cancelled goal: not a new start pose, not a new map.
+    count = len(harness.plans)
+    harness.odom_pub.publish(odom_msg(START[0] + 0.1, START[1]))
+    harness.map_pub.publish(map_msg(wall_map(extra=(slice(28, 32), slice(75, 78)))))
+    harness.spin_for(1.0)
+    assert len(harness.plans) == count
+    assert harness.goal_outcomes == ['preempted', 'reached', 'cancelled']
 
 
 def test_bad_messages_do_not_kill_the_node(harness):

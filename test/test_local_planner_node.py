@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 
 rclpy = pytest.importorskip('rclpy')
 
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import Twist, TwistStamped  # noqa: E402
 from nav_msgs.msg import Odometry, Path  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
@@ -71,8 +71,11 @@ class FakeRobot:
         self.plan_pub = self.node.create_publisher(Path, 'plan', LATCHED_QOS)
         self.node.create_subscription(TwistStamped if stamped else Twist, 'cmd_vel',
                                       self._on_cmd, 50)
+        self.outcomes = []  # controller_outcome messages
+        self.node.create_subscription(DiagnosticStatus, 'controller_outcome',
+                                      self.outcomes.append, 10)
         self.statuses = []  # key values of the local planner's diagnostics
-        self.node.create_subscription(DiagnosticArray, 'diagnostics', self._on_diagnostics, 50)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diagnostics, 50)
         self.node.create_timer(1.0 / SENSOR_RATE_HZ, self._publish_sensors)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
@@ -110,8 +113,10 @@ class FakeRobot:
             self.scan_pub.publish(scan)
 
     def publish_plan(self, points=((0.0, 0.0), (5.0, 0.0))):
+        """Publish a plan; returns its stamp [ns]."""
         stamp = self.node.get_clock().now().to_msg()
         self.plan_pub.publish(conv.path_to_msg(list(points), 'map', stamp))
+        return conv.stamp_to_nanoseconds(stamp)
 
     def publish_empty_plan(self):
         msg = Path()
@@ -160,6 +165,16 @@ def test_idle_planner_sends_one_zero_command_then_nothing(robot):
     robot.wait(1.0)
     after = robot.commands_since(t0)
     assert len(after) == 1 and not moving(after), 'one stop, then silence'
+
+
+def test_a_run_that_ends_is_reported_once_with_its_plan_stamp(robot):
+    stamp = robot.publish_plan(((-1.0, 0.0), (0.05, 0.0)))  # ends where the robot stands
+    assert robot.wait_until(lambda: robot.outcomes, 5.0), 'no outcome'
+    robot.wait(1.0)
+    assert len(robot.outcomes) == 1
+    values = {kv.key: kv.value for kv in robot.outcomes[0].values}
+    assert robot.outcomes[0].message == 'reached' and int(values['plan_stamp_ns']) == stamp
+    assert robot.statuses[-1]['last_outcome'] == 'reached'
 
 
 @pytest.mark.parametrize('robot', [{'publish_zero_when_idle': True}], indirect=True)

@@ -39,7 +39,7 @@ DEMO_TOPICS = {
     '/odom': 'nav_msgs/msg/Odometry', '/scan': 'sensor_msgs/msg/LaserScan',
     '/obstacles': 'visualization_msgs/msg/MarkerArray', '/tracks': 'visualization_msgs/msg/MarkerArray',
     '/cmd_vel': 'geometry_msgs/msg/Twist',
-    '/goal_pose': 'geometry_msgs/msg/PoseStamped',
+    '/goal_pose': 'geometry_msgs/msg/PoseStamped', '/goal_outcome': 'std_msgs/msg/String',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
 }
 #: Wall time allowed for a few messages to arrive [s].
@@ -212,7 +212,10 @@ def test_demo_recording_decodes_to_the_run_on_simulated_time(demo_run):
     assert max(abs(t * 1e-9 - s) for t, s in zip(times, stamps)) < 1.0
     last = messages['/odom'][-1][1].pose.pose.position
     assert math.hypot(last.x - 4.75, last.y - 1.55) < 0.5
-    plan = messages['/plan'][-1][1]
-    assert plan.poses and plan.header.frame_id == 'map'
+    plans = [plan for _, plan in messages['/plan']]
+    assert plans[0].poses and plans[0].header.frame_id == 'map'
+    # The goal ended once, reached; then the plan emptied, so nothing drives it again.
+    assert [msg.data for _, msg in messages['/goal_outcome']] == ['reached']
+    assert not plans[-1].poses
     assert any(status.name.endswith('local_planner')
                for _, array in messages['/diagnostics'] for status in array.status)

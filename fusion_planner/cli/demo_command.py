@@ -774,6 +774,7 @@ def recorded_topics():
     from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import LaserScan
+    from std_msgs.msg import String
     from visualization_msgs.msg import MarkerArray
 
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -785,7 +786,8 @@ def recorded_topics():
             ('odom', Odometry, sensor), ('scan', LaserScan, sensor),
             ('obstacles', MarkerArray, reliable), ('tracks', MarkerArray, reliable),
             ('cmd_vel', Twist, reliable),
-            ('goal_pose', PoseStamped, reliable), ('/diagnostics', DiagnosticArray, reliable))
+            ('goal_pose', PoseStamped, reliable), ('goal_outcome', String, reliable),
+            ('/diagnostics', DiagnosticArray, reliable))
 
 
 def start_recording(node, path):

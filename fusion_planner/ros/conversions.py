@@ -102,6 +102,17 @@ def stamp_to_seconds(stamp):
     return stamp.sec + stamp.nanosec / NS_PER_S
 
 
+def stamp_to_nanoseconds(stamp):
+    """Integer nanoseconds of a ``builtin_interfaces/Time`` (exact, unlike seconds).
+
+    Examples
+    --------
+    >>> stamp_to_nanoseconds(seconds_to_stamp(1.5))
+    1500000000
+    """
+    return stamp.sec * NS_PER_S + stamp.nanosec
+
+
 def seconds_to_stamp(seconds):
     """A ``builtin_interfaces/Time`` for a time in seconds.
 

@@ -44,12 +44,14 @@ import rclpy
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Quaternion, Twist
 from hypothesis import HealthCheck, Phase, given, seed, settings
 from hypothesis import strategies as st
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from std_msgs.msg import Header
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 from fusion_planner.core import raster
@@ -57,6 +59,7 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S, RateLimitedLogger
+from fusion_planner.ros.goal_outcome import CONTROLLER_OUTCOMES
 from fusion_planner.ros.qos import LatchedOrVolatile
 
 #: A message and the names of the defects put into it (empty: a valid message).
@@ -77,8 +80,8 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 REFUSED_OUTCOMES = ('invalid_input', 'invalid_map')
 #: At most this many defects are put into one message [1].
 MAX_DEFECTS = 3
-#: Map-size limit of the fuzzed planners [cells]: small, so that maps beyond
-#: it are cheap to send.
+#: Map-size limit of the fuzzed global planner [cells]: small, so that maps
+#: beyond it are cheap to send.
 MAX_MAP_CELLS = 4000
 #: Default messages per input of the soak [1].
 DEFAULT_SOAK_MESSAGES = 10_000
@@ -88,8 +91,9 @@ CHUNK = 500
 SHOWN_CHARS = 1500
 #: Slack on velocity limits [m/s or rad/s].
 LIMIT_EPS = 1e-9
-#: Services every rclpy node has (parameters, type descriptions): not ours.
-RCLPY_SERVICE_PACKAGES = ('rcl_interfaces', 'type_description_interfaces')
+#: Services every rclpy (lifecycle) node has (parameters, type descriptions, lifecycle
+#: transitions, tested in test_lifecycle.py): not ours.
+RCLPY_SERVICE_PACKAGES = ('rcl_interfaces', 'type_description_interfaces', 'lifecycle_msgs')
 
 
 # -- strategies: numbers, headers, poses ---------------------------------------------
@@ -518,6 +522,45 @@ def twists(draw, speed_limit, omega_limit, bad_only=False):
     return Fuzzed(msg, defects)
 
 
+#: Defects of a controller outcome: an unknown outcome word, a missing or
+#: non-integer plan stamp.
+CONTROLLER_OUTCOME_DEFECTS = ('outcome', 'plan stamp')
+_TEXT = st.text(max_size=20)
+
+
+@st.composite
+def controller_outcomes(draw, bad_only=False):
+    """``diagnostic_msgs/DiagnosticStatus`` on ``controller_outcome``, as :data:`Fuzzed`."""
+    defects = draw(_defect_sets(CONTROLLER_OUTCOME_DEFECTS, bad_only))
+    outcome = draw(st.sampled_from(CONTROLLER_OUTCOMES))
+    if 'outcome' in defects:
+        outcome = draw(_TEXT.filter(lambda text: text not in CONTROLLER_OUTCOMES))
+    values = [KeyValue(key='reason', value=draw(_TEXT))]
+    if 'plan stamp' not in defects:
+        values.append(KeyValue(key='plan_stamp_ns', value=str(draw(st.integers(0, 2 ** 63)))))
+    elif draw(_BOOL):
+        values.append(KeyValue(key='plan_stamp_ns', value=draw(_TEXT.filter(_not_integer))))
+    return Fuzzed(DiagnosticStatus(level=draw(st.sampled_from((b'\x00', b'\x02'))),
+                                   name=draw(_TEXT), message=outcome, values=values), defects)
+
+
+def _not_integer(text):
+    try:
+        int(text)
+    except ValueError:
+        return True
+    return False
+
+
+#: Inputs without fields (a Trigger request): every message is valid.
+FIELDLESS_INPUTS = ('cancel_goal',)
+
+
+def triggers(bad_only=False):
+    """``std_srvs/Trigger`` requests (no fields, so no defects; ``bad_only`` is ignored)."""
+    return st.just(Fuzzed(Trigger.Request(), []))
+
+
 def generate(strategy, count, seed_value=0):
     """Yield ``count`` examples of ``strategy``, the same ones for the same seed.
 
@@ -639,6 +682,7 @@ class FuzzTarget:
             If the input's type has no strategy (a new input: add one).
         """
         factories = {OccupancyGrid: occupancy_grids, PoseStamped: pose_stampeds,
+                     DiagnosticStatus: controller_outcomes, Trigger: triggers,
                      PoseWithCovarianceStamped: poses_with_covariance, Odometry: odometries,
                      Path: paths, MarkerArray: marker_arrays, GetPlan: get_plan_requests,
                      LaserScan: lambda bad_only: laser_scans(ROBOT_FRAME, bad_only)}
@@ -857,8 +901,8 @@ class LocalPlannerTarget(FuzzTarget):
 
         super().__init__(LocalPlannerNode(context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True), Parameter('diagnostics_period', value=0.0),
-            Parameter('plan_timeout', value=0.0),  # no plan publisher here: never time out
-            Parameter('max_map_cells', value=MAX_MAP_CELLS)]))
+            Parameter('max_map_cells', value=MAX_MAP_CELLS),
+            Parameter('plan_timeout', value=0.0)]))  # no plan publisher here: never time out
         node = self.node
         self.dt = 1.0 / node.get_parameter('control_rate').value
         self.max_speed = node.get_parameter('max_speed').value

@@ -28,12 +28,19 @@ Topics (relative names, so a namespace or a remap applies):
   confirmed ones, and a plan they block is replaced at once.
 - ``get_plan`` (nav_msgs/srv/GetPlan): plans between the request's poses
   without touching ``plan``; an empty path on failure.
+- ``cancel_goal`` (std_srvs/srv/Trigger): ends the current goal
+  (``cancelled``); ``success`` is false when there is none.
+- ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) in: how the
+  local planner's run of one of this goal's plans ended.
+- ``goal_outcome`` (std_msgs/String, reliable) out: exactly one outcome
+  per goal (:mod:`~fusion_planner.ros.goal_outcome`); the goal is then
+  forgotten and an empty plan published, so nothing resumes it.
 - ``/diagnostics`` out: outcome of each request (``succeeded`` or the
   ``.outcome`` of the core error: ``start_outside_map``, ``goal_occupied``,
   ``no_valid_path``, ``timeout`` ...; ``no_map`` and ``no_start_pose`` while
   waiting), plan time and figures.
 
-Replanning happens on a new goal, on the first start pose after a goal that
+Replanning (for the current goal, until it ends) happens on a new goal, on the first start pose after a goal that
 was waiting for one, when a confirmed scan obstacle comes within the robot
 radius of the rest of the plan, and on a new map that leaves no valid plan
 (a new map also forgets the scan obstacles): the current
@@ -55,7 +62,9 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from nav_msgs.srv import GetPlan
-from rclpy.node import Node
+from diagnostic_msgs.msg import DiagnosticStatus
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
 from rclpy.qos import ReliabilityPolicy
 from scipy import ndimage
 from scipy.spatial import cKDTree
@@ -70,7 +79,10 @@ from fusion_planner.core.map_files import DEFAULT_OCCUPIED_THRESHOLD
 from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
 from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
 from fusion_planner.ros import conversions as conv
-from fusion_planner.ros.diagnostics import WARN, DiagnosticsReporter
+from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
+from fusion_planner.ros.goal_outcome import (
+    CANCEL_SERVICE, CONTROLLER_OUTCOME_TOPIC, GOAL_OUTCOME_TOPIC, controller_outcome_from_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros.timed_pose import pose_at
@@ -124,6 +136,7 @@ class GlobalPlannerParams:
     obstacle_clear_range: float = 4.0
     obstacle_update_period: float = 0.2
     diagnostics_period: float = 1.0
+    autostart: bool = True
 
     def __post_init__(self):
         self.planner_config()  # the core validates algorithm, weights, radii
@@ -201,6 +214,7 @@ PARAMETER_SPECS = (
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),
+    ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
 )
 
 
@@ -260,8 +274,12 @@ def nearest_free_goal(grid, traversable, goal, tolerance, components=None, start
     return grid.world_of(np.array([rows.start + r, cols.start + c]))
 
 
-class GlobalPlannerNode(Node):
+class GlobalPlannerNode(ManagedNode):
     """The global planner node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    inactive, it refuses goals and plans; deactivating it cancels the
+    current goal.
 
     Parameters
     ----------
@@ -282,6 +300,12 @@ class GlobalPlannerNode(Node):
         params = self._params.current
         self._frame_id = params.frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def configure(self):
+        """Fresh state; the publishers, subscriptions and services."""
+        params = self._params.current
         # Map state: the accepted message (kept to rebuild on a parameter
         # change), the options it was converted with, its planner.
         self._map_msg = None
@@ -289,7 +313,8 @@ class GlobalPlannerNode(Node):
         self._planner = None
         self._components = None  # (radius, labels) of the traversable mask
         self._start = None  # (x, y, yaw) [m, m, rad]
-        self._goal = None  # (x, y, yaw) of the current goal_pose goal
+        self._goal = None  # (x, y, yaw) of the current goal_pose goal, None once it ended
+        self._goal_plan_stamps = set()  # stamps of the plans published for it [ns]
         self._waiting = False  # the current goal waits for a map or a start pose
         self._plan = None  # (N, 2) published plan, None when none is valid
         self._layer = None  # ObstacleLayer of the scans on the current map
@@ -299,8 +324,9 @@ class GlobalPlannerNode(Node):
         self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
         guard = self._diagnostics.guard
-        self._plan_pub = self.create_publisher(Path, 'plan', LATCHED_QOS)
-        self._markers_pub = self.create_publisher(MarkerArray, 'plan_markers', RELIABLE_QOS)
+        self._plan_pub = self.create_lifecycle_publisher(Path, 'plan', LATCHED_QOS)
+        self._markers_pub = self.create_lifecycle_publisher(MarkerArray, 'plan_markers',
+                                                            RELIABLE_QOS)
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
@@ -317,7 +343,20 @@ class GlobalPlannerNode(Node):
                                      ANY_PUBLISHER_QOS)
         self.create_service(GetPlan, 'get_plan',
                             guard('get_plan', self._on_get_plan, on_error=self._empty_response))
+        self._outcome_pub = self.create_lifecycle_publisher(String, GOAL_OUTCOME_TOPIC,
+                                                            RELIABLE_QOS)
+        self.create_subscription(DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC,
+                                 guard('controller_outcome', self._on_controller_outcome),
+                                 RELIABLE_QOS)
+        self.create_service(Trigger, CANCEL_SERVICE,
+                            guard('cancel_goal', self._on_cancel, on_error=self._cancel_refused))
         self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')
+
+    def deactivate(self):
+        """The current goal ends ``cancelled`` while the publishers still publish."""
+        if self._goal is not None:
+            self._end_goal('cancelled', 'the node was deactivated')
+        self._diagnostics.update(WARN, 'inactive')
 
     # -- callbacks ------------------------------------------------------------
 
@@ -338,10 +377,59 @@ class GlobalPlannerNode(Node):
             self._replan('map')
 
     def _on_goal(self, msg):
-        """Plan to a new goal."""
-        self._goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        """Plan to a new goal; one still active ends ``preempted``."""
+        goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
+        if not self.active:
+            self._diagnostics.log.warning('goal_pose/inactive',
+                                          'goal_pose ignored: the node is inactive')
+            return
+        if self._goal is not None:
+            self._end_goal('preempted', 'a newer goal arrived', stop=False)
+        self._goal = goal
         self._check_clock()
         self._replan('goal_pose')
+
+    def _on_cancel(self, request, response):
+        """Serve ``cancel_goal``: the current goal ends ``cancelled``, the robot stops."""
+        if self._goal is None:
+            response.success, response.message = False, 'no goal to cancel'
+            return response
+        self._end_goal('cancelled', 'cancel_goal was called')
+        response.success, response.message = True, 'goal cancelled'
+        return response
+
+    def _cancel_refused(self, request, response):
+        response.success, response.message = False, 'cancel failed: see the diagnostics'
+        return response
+
+    def _on_controller_outcome(self, msg):
+        """End the goal when the local planner's run of one of its plans ended."""
+        outcome, plan_stamp, reason = controller_outcome_from_msg(msg)
+        if self._goal is None or plan_stamp not in self._goal_plan_stamps:
+            return  # the run of an older goal's plan
+        self._end_goal(outcome, reason)
+
+    def _end_goal(self, outcome, reason, stop=True):
+        """Publish, log and report the current goal's one outcome, then forget the goal.
+
+        With ``stop`` an empty plan goes out, so a follower stops and a late
+        one does not drive the latched old plan.
+        """
+        goal = self._goal
+        self._goal = None
+        self._goal_plan_stamps.clear()
+        self._waiting = False
+        if stop:
+            self._plan = None
+            self._plan_pub.publish(self._empty_path())
+        self._outcome_pub.publish(String(data=outcome))
+        line = f'goal ({goal[0]:.2f}, {goal[1]:.2f}) ended: {outcome}' + (
+            f' ({reason})' if reason else '')
+        if outcome in ('reached', 'cancelled', 'preempted'):
+            self.get_logger().info(line)
+        else:
+            self.get_logger().warning(line)
+        self._diagnostics.update(OK if outcome == 'reached' else WARN, line, goal_outcome=outcome)
 
     def _on_odometry(self, msg):
         pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
@@ -386,6 +474,10 @@ class GlobalPlannerNode(Node):
     def _on_get_plan(self, request, response):
         """Serve nav_msgs/srv/GetPlan; the published plan is left alone."""
         response.plan = self._empty_path()
+        if not self.active:
+            self._diagnostics.log.warning('get_plan/inactive',
+                                          'get_plan answered empty: the node is inactive')
+            return response
         try:
             start = conv.pose_stamped_to_xy_yaw(request.start, self._frame_id, 'start')
             goal = conv.pose_stamped_to_xy_yaw(request.goal, self._frame_id, 'goal')
@@ -445,14 +537,17 @@ class GlobalPlannerNode(Node):
             result, used_goal = self._plan_to(
                 self._start, goal, self._params.current.goal_tolerance)
         except Exception as err:  # noqa: BLE001 - re-raised below unless a planning outcome
-            self._plan = None
-            self._plan_pub.publish(self._empty_path())  # followers stop, whatever went wrong
             if not isinstance(err, PlanningError):
+                self._plan = None
+                self._plan_pub.publish(self._empty_path())  # followers stop
                 raise  # a bug: the callback guard logs it and reports a fault
             self._diagnostics.failed(err, trigger)
+            self._end_goal('no_path', f'{err.outcome}: {err}')
             return
         self._plan = result.path
-        self._plan_pub.publish(conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2]))
+        msg = conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2])
+        self._goal_plan_stamps.add(conv.stamp_to_nanoseconds(msg.header.stamp))
+        self._plan_pub.publish(msg)
         self._markers_pub.publish(self._markers(result))
         self._report_success(trigger, result, goal, used_goal)
 

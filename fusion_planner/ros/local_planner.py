@@ -29,9 +29,12 @@ Topics (relative names, so a namespace or a remap applies):
   odometry, not newer than the last tracked one, without beams) is not
   tracked; why is logged (rate-limited) and kept in the diagnostics value
   ``scan_tracking``.
-- ``map`` (nav_msgs/OccupancyGrid; latched or volatile publishers) in: the
-  known map the scan tracker tells people from walls with; no scan tracks
-  until it arrives.
+- ``map`` (nav_msgs/OccupancyGrid, latched or volatile publishers) in: the
+  known map the fusion controller replans on, with the obstacles it has
+  scanned, when it is stuck (:class:`~fusion_planner.core.local_planning.replanning.GridReplanner`,
+  as in the simulation); without a map it recovers without replanning. The
+  scan tracker tells people from walls with it too: no scan tracks until it
+  arrives.
 - ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in,
   optional: moving obstacles tracked elsewhere; velocities are estimated
   from successive positions
@@ -48,6 +51,11 @@ Topics (relative names, so a namespace or a remap applies):
   nothing, so it does not fight a teleop or keep a twist_mux input alive;
   ``publish_zero_when_idle`` keeps a zero command at ``control_rate``.
 - ``local_plan`` (nav_msgs/Path) out: the controller's short field rollout.
+- ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) out, once per
+  plan whose run ended: ``reached``, ``no_path`` (replanning proved the goal
+  unreachable) or ``controller_failed``, with the plan's stamp
+  (:mod:`~fusion_planner.ros.goal_outcome`); also logged once and on
+  diagnostics as ``last_outcome``.
 - ``/diagnostics`` out: controller status, arrival, failure with its reason,
   stuck events, stale inputs, step timing.
 
@@ -72,19 +80,24 @@ from dataclasses import field as dataclass_field
 from dataclasses import fields, make_dataclass
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
-from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
-from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.global_planning.planner import PlannerConfig
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
+from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.core.local_planning.scan_tracker import ScanVerdict
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter, one_line
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
+from fusion_planner.ros.goal_outcome import (
+    CONTROLLER_OUTCOME_TOPIC, OUTCOME_OF_STATUS, controller_outcome_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.scan_tracks import ScanTracks, fuse, tracks_to_markers
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
@@ -138,14 +151,14 @@ NODE_PARAMETERS = (
      'becomes one key node (APF sub-goal) [rad]', float_range(0.0, 1.0), False, ()),
     ('plan_timeout', 1.0, 'drop the plan (stop) when no publisher of plan has been seen for this '
      'long; 0 disables [s]', float_range(0.0, 600.0), False, ()),
-    ('max_map_cells', DEFAULT_MAX_CELLS,
-     'maps with more cells are refused (no scan tracking on them) [cells]',
-     int_range(1, 400_000_000), True, ()),
     ('obstacle_timeout', conv.DEFAULT_OBSTACLE_TIMEOUT_S,
      'forget a tracked obstacle not seen for this long [s]', float_range(0.01, 60.0), True, ()),
+    ('max_map_cells', DEFAULT_MAX_CELLS, 'maps with more cells are refused [cells]',
+     int_range(1, 400_000_000), True, ()),
     ('diagnostics_period', 1.0,
      'period of the diagnostics heartbeat on the node clock; 0: events only [s]',
      float_range(0.0, 60.0), True, ()),
+    ('autostart', True, AUTOSTART_DESCRIPTION, None, True, ()),
 )
 
 #: Description and range of each :class:`~fusion_planner.core.local_planning.follow.FollowerParams`
@@ -346,8 +359,12 @@ def _corner(pts, first, last):
     return corner
 
 
-class LocalPlannerNode(Node):
+class LocalPlannerNode(ManagedNode):
     """The local planner node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    it commands only while active; deactivating it sends one zero command
+    and then nothing.
 
     Parameters
     ----------
@@ -377,11 +394,27 @@ class LocalPlannerNode(Node):
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
-        self._controller = follow.make_controller(params.controller, params.follower_params())
+        self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
+        if params.use_stamped_twist:
+            self.get_logger().warning('use_stamped_twist is deprecated: '
+                                      'set enable_stamped_cmd_vel instead')
+        self._timer = None
+        self._reset_state()
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def _reset_state(self):
+        """Forget every input and the controller's state."""
+        params = self._params.current
+        self._replanner = None     # GridReplanner on the latest map
+        self._controller = follow.make_controller(params.controller, params.follower_params(),
+                                                  replan=self._replan)
         self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
         self._scan_tracks = ScanTracks(params.frame_id)
         self._tracking_note = ''   # why the last scan was not tracked ('' when it was)
         self._plan = None          # (N, 2) path being followed [m]
+        self._plan_stamp_ns = 0    # header stamp of that plan [ns]
+        self._outcome_sent = False  # the run of that plan ended and was reported
         self._odom = None          # latest Odometry as (stamp [s], pose (3,), velocity (2,))
         self._odom_received = None  # node-clock time it arrived [s]
         self._odom_history = collections.deque(maxlen=ODOM_HISTORY)  # (stamp, pose, velocity)
@@ -394,18 +427,17 @@ class LocalPlannerNode(Node):
         self._step_ms_max = 0.0
         self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
         self._idle_stop_sent = False  # the one zero command of an idle spell went out
-        self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
-        if params.use_stamped_twist:
-            self.get_logger().warning('use_stamped_twist is deprecated: '
-                                      'set enable_stamped_cmd_vel instead')
 
+    def configure(self):
+        """Fresh state; the publishers, subscriptions and the control timer."""
+        with self._lock:
+            self._reset_state()
+        params = self._params.current
         guard = self._diagnostics.guard
         twist_type = TwistStamped if self._stamped else Twist
-        self._cmd_pub = self.create_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
-        self._local_plan_pub = self.create_publisher(Path, 'local_plan', RELIABLE_QOS)
-        self._tracks_pub = self.create_publisher(MarkerArray, 'tracks', RELIABLE_QOS)
-        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
-                                          ReliabilityPolicy.RELIABLE)
+        self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
+        self._local_plan_pub = self.create_lifecycle_publisher(Path, 'local_plan', RELIABLE_QOS)
+        self._tracks_pub = self.create_lifecycle_publisher(MarkerArray, 'tracks', RELIABLE_QOS)
         self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
                                            ReliabilityPolicy.RELIABLE)
         self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
@@ -414,11 +446,25 @@ class LocalPlannerNode(Node):
                                  ANY_PUBLISHER_QOS)
         self.create_subscription(MarkerArray, 'obstacles', guard('obstacles', self._on_obstacles),
                                  RELIABLE_QOS)
+        self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
+                                          ReliabilityPolicy.RELIABLE)
+        self._outcome_pub = self.create_lifecycle_publisher(
+            DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC, RELIABLE_QOS)
         self._timer = self.create_timer(1.0 / params.control_rate,
                                         guard('control', self._on_timer, on_error=self._on_fault))
         self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
                                  stuck_events=0, controller=params.controller)
 
+    def deactivate(self):
+        """Stop the robot with one zero command before the publishers go quiet."""
+        with self._lock:
+            self._publish_command(0.0, 0.0)
+            self._idle_stop_sent = True
+        self._update(WARN, 'inactive', status='inactive')
+
+    def cleanup(self):
+        """The timer went with the other entities."""
+        self._timer = None
     # -- inputs ---------------------------------------------------------------
 
     def _on_plan(self, msg):
@@ -436,10 +482,28 @@ class LocalPlannerNode(Node):
             min_turn = self._params.current.key_node_min_turn
             self._controller.set_path(path, key_nodes_of(path, min_turn))
             self._plan = path
+            self._plan_stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
+            self._outcome_sent = False
             self._plan_orphaned_since = None
             self._status = None
             self.get_logger().info(
                 f'new plan of {len(path)} points to ({path[-1, 0]:.2f}, {path[-1, 1]:.2f})')
+
+    def _on_map(self, msg):
+        """Replan and track scans on this map from now on (unknown cells count as obstacles)."""
+        params = self._params.current
+        grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
+                                               max_cells=params.max_map_cells)
+        config = PlannerConfig(robot_radius=params.robot_radius)
+        with self._lock:
+            self._replanner = GridReplanner(grid, config)
+            self._scan_tracks.set_map(grid)
+
+    def _replan(self, start, goal, obstacle_points):
+        """The controller's replanner: the map plus the scanned obstacles (see GridReplanner)."""
+        if self._replanner is None:
+            raise NoValidPathCouldBeFound('no map received: cannot replan')
+        return self._replanner(start, goal, obstacle_points)
 
     def _on_odometry(self, msg):
         pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
@@ -490,13 +554,6 @@ class LocalPlannerNode(Node):
             self._diagnostics.log.warning('scan/not_tracked', one_line(f'scan: {reason}'))
         self._diagnostics.update(self._level, self._message, scan_tracking=reason or 'tracking')
 
-    def _on_map(self, msg):
-        grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
-                                               max_cells=self._params.current.max_map_cells)
-        with self._lock:
-            self._scan_tracks.set_map(grid)
-        self.get_logger().info(f'map of {grid.width} x {grid.height} cells: tracking scans on it')
-
     def _on_obstacles(self, msg):
         with self._lock:
             _, rejected = self._tracker.update(msg, self._now_s())
@@ -509,14 +566,15 @@ class LocalPlannerNode(Node):
         """Apply an accepted run-time parameter change."""
         with self._lock:
             if new.controller != old.controller or new.key_node_min_turn != old.key_node_min_turn:
-                self._controller = follow.make_controller(new.controller, new.follower_params())
+                self._controller = follow.make_controller(new.controller, new.follower_params(),
+                                                          replan=self._replan)
                 if self._plan is not None:
                     self._controller.set_path(self._plan,
                                               key_nodes_of(self._plan, new.key_node_min_turn))
                 self._status = None
             else:
                 self._controller.params = new.follower_params()
-            if new.control_rate != old.control_rate:
+            if new.control_rate != old.control_rate and self._timer is not None:
                 self.destroy_timer(self._timer)
                 self._timer = self.create_timer(
                     1.0 / new.control_rate,
@@ -530,6 +588,8 @@ class LocalPlannerNode(Node):
 
     def _on_timer(self):
         """One control step: check inputs, run the controller, publish."""
+        if not self.active:
+            return
         started = time.perf_counter()
         with self._lock:
             now = self._now_s()
@@ -658,20 +718,31 @@ class LocalPlannerNode(Node):
         values = dict(status=status, arrived=status == 'arrived', stuck_events=stuck,
                       controller=self._params.current.controller,
                       distance_to_goal_m=distance, step_ms=step_ms, step_ms_max=self._step_ms_max)
+        if status in OUTCOME_OF_STATUS:
+            self._publish_outcome(OUTCOME_OF_STATUS[status], command.reason)
         if status == 'arrived':
             self.get_logger().info(f'arrived at ({pose[0]:.2f}, {pose[1]:.2f}), '
                                    f'{distance:.3f} m from the goal')
             self._diagnostics.succeeded('arrived at the goal', last_error='', **values)
-            self._level, self._message = OK, 'arrived at the goal'
-        elif status == 'failed':
-            self.get_logger().error(f'local planner failed: {command.reason}')
-            self._update(ERROR, f'failed: {command.reason}', last_outcome='failed',
+            self._update(OK, 'arrived at the goal', last_outcome='reached')
+        elif status in ('failed', 'no_path'):
+            outcome = OUTCOME_OF_STATUS[status]
+            self.get_logger().error(f'local planner ended: {outcome}: {command.reason}')
+            self._update(ERROR, f'{outcome}: {command.reason}', last_outcome=outcome,
                          last_error=command.reason, **values)
         elif status == 'slow_stale_scan':
             self._update(WARN, 'scan is stale: slowing down', **values)
         else:
             self._update(OK if status == 'moving' else WARN, status, **values)
         self._status = status
+
+    def _publish_outcome(self, outcome, reason):
+        """Tell the global planner, once per plan, how its run ended."""
+        if self._outcome_sent:
+            return
+        self._outcome_sent = True
+        self._outcome_pub.publish(controller_outcome_msg(
+            outcome, self._plan_stamp_ns, reason, self.get_fully_qualified_name()))
 
     def _report(self, status, message, level):
         """Diagnostics (and a log line for a stop) once per status change."""

@@ -67,7 +67,6 @@ import numpy as np
 from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
@@ -81,6 +80,7 @@ from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
 from fusion_planner.ros.qos import (
     LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS, LatchedOrVolatile)
+from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
 from fusion_planner.ros.node_main import run_node
 
 NODE_NAME = 'simulator'
@@ -130,6 +130,7 @@ class SimulatorParams:
     start_paused: bool = False
     enable_stamped_cmd_vel: bool = False
     diagnostics_period: float = 1.0
+    autostart: bool = True
 
     def __post_init__(self):
         if self.scan_rate > self.rate:
@@ -175,6 +176,7 @@ PARAMETER_SPECS = (
                   'node then follows the type of the cmd_vel publishers it finds', read_only=True),
     ParameterSpec('diagnostics_period', 1.0, 'wall period of the diagnostics status [s]',
                   float_range(0.05, 60.0), read_only=True),
+    ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
 )
 
 
@@ -255,8 +257,12 @@ def scan_to_msg(scan, config, frame_id, stamp, scan_period):
     return msg
 
 
-class SimulatorNode(Node):
+class SimulatorNode(ManagedNode):
     """The simulator node (see the module docstring for its interface).
+
+    A lifecycle node (:class:`~fusion_planner.ros.lifecycle.ManagedNode`):
+    configuring builds a fresh world from the scenario (loaded once, at
+    construction); the world steps only while active.
 
     Parameters
     ----------
@@ -293,12 +299,23 @@ class SimulatorNode(Node):
                 f'rate {params.rate:g} Hz lets the robot move more than its radius '
                 f'({s.robot.radius:g} m) in one step at {s.robot.max_speed:g} m/s: '
                 'contacts with thin walls could be missed; raise rate')
-        self.world = World(s.grid, s.robot, s.start, s.unknown_obstacles, s.moving_obstacles,
-                           s.scan, seed=s.seed)
+        self._scenario_path = path
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
         self._dt = 1.0 / params.rate
         self._goal = np.asarray(s.goal, dtype=float)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._step_timer = None
+        self._diagnostics = DiagnosticsReporter(self, 0.0)
+        self._diagnostics.update(WARN, 'unconfigured')
+        self.start(params.autostart)
+
+    def configure(self):
+        """A fresh world; the publishers, subscriptions and timers."""
+        params = self._params.current
+        s = self.scenario
+        self.world = World(s.grid, s.robot, s.start, s.unknown_obstacles, s.moving_obstacles,
+                           s.scan, seed=s.seed)
         self._command = (0.0, 0.0)
         self._command_time = -math.inf  # simulated time of the last command [s]
         self._commands_flow = False  # a controller is sending commands (see max_command_lag)
@@ -313,18 +330,17 @@ class SimulatorNode(Node):
         self._goal_sent_at = None    # wall time of the last send
         self._goal_matched_at = None
         self._goal_answered = False
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._paused = params.start_paused  # held at t = 0 until the first plan
         self._paused_published = -math.inf  # wall time of the last sensors while held [s]
 
-        self._diagnostics = DiagnosticsReporter(self, 0.0)
         guard = self._diagnostics.guard
-        self._map_pub = self.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
-        self._odom_pub = self.create_publisher(Odometry, 'odom', RELIABLE_QOS)
-        self._scan_pub = self.create_publisher(LaserScan, 'scan', SENSOR_QOS)
-        self._obstacles_pub = self.create_publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
-        self._clock_pub = self.create_publisher(ClockMsg, 'clock', RELIABLE_QOS)
-        self._goal_pub = self.create_publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
+        publisher = self.create_lifecycle_publisher
+        self._map_pub = publisher(OccupancyGrid, 'map', LATCHED_QOS)
+        self._odom_pub = publisher(Odometry, 'odom', RELIABLE_QOS)
+        self._scan_pub = publisher(LaserScan, 'scan', SENSOR_QOS)
+        self._obstacles_pub = publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
+        self._clock_pub = publisher(ClockMsg, 'clock', RELIABLE_QOS)
+        self._goal_pub = publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
         self._cmd_vel_sub = self.create_subscription(
             TwistStamped if params.enable_stamped_cmd_vel else Twist, 'cmd_vel',
             guard('cmd_vel', self._on_cmd_vel), RELIABLE_QOS)
@@ -337,14 +353,24 @@ class SimulatorNode(Node):
                           clock=self._steady)
         self.create_timer(params.diagnostics_period, guard('status', self._publish_status),
                           clock=self._steady)
-
-        self._map_pub.publish(conv.grid_map_to_occupancy_grid(
-            s.grid, self._frame_id, conv.seconds_to_stamp(0.0)))
         self.get_logger().info(
-            f"scenario '{s.name}' loaded from {path}: map {s.grid.width} x {s.grid.height} cells, "
-            f'{len(s.unknown_obstacles)} unknown and {len(s.moving_obstacles)} moving obstacles, '
+            f"scenario '{s.name}' loaded from {self._scenario_path}: map {s.grid.width} x "
+            f'{s.grid.height} cells, {len(s.unknown_obstacles)} unknown and '
+            f'{len(s.moving_obstacles)} moving obstacles, '
             f'goal ({self._goal[0]:.2f}, {self._goal[1]:.2f})')
+
+    def activate(self):
+        """Publish the known map (latched) and start stepping."""
+        self._map_pub.publish(conv.grid_map_to_occupancy_grid(
+            self.scenario.grid, self._frame_id, conv.seconds_to_stamp(0.0)))
         self._diagnostics.update(OK, 'running', collisions=0)
+
+    def deactivate(self):
+        self._diagnostics.update(WARN, 'inactive: the world is held')
+
+    def cleanup(self):
+        """The timers went with the other entities."""
+        self._step_timer = None
 
     # -- inputs ---------------------------------------------------------------
 
@@ -393,7 +419,7 @@ class SimulatorNode(Node):
             self.get_logger().info('first plan received: the world starts moving')
 
     def _on_parameters_changed(self, old, new):
-        if new.real_time_factor != old.real_time_factor:
+        if new.real_time_factor != old.real_time_factor and self._step_timer is not None:
             self.destroy_timer(self._step_timer)
             self._step_timer = self._make_step_timer(new)
         self.get_logger().info(f'parameters changed: real_time_factor={new.real_time_factor:g}, '
@@ -410,6 +436,8 @@ class SimulatorNode(Node):
 
     def step(self):
         """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+        if not self.active:
+            return
         params = self._params.current
         world = self.world
         if self._paused:
@@ -489,7 +517,7 @@ class SimulatorNode(Node):
 
     def _on_goal_timer(self):
         """Send the scenario's goal once the planner listens; re-send until a plan answers."""
-        if not self._params.current.publish_goal or self._goal_answered \
+        if not self.active or not self._params.current.publish_goal or self._goal_answered \
                 or self._goal_attempts >= MAX_GOAL_ATTEMPTS:
             return
         now = time.monotonic()
@@ -516,6 +544,8 @@ class SimulatorNode(Node):
 
     def _publish_status(self):
         """Diagnostics heartbeat: collisions, clearance, distances, achieved speed."""
+        if not self.active:
+            return  # the lifecycle transitions report themselves
         world = self.world
         wall, sim = time.monotonic(), world.time
         if wall > self._rtf_mark[0]:
