@@ -87,12 +87,15 @@ def test_contacts_at_rest_are_told_apart_from_contacts_while_driving():
     scenario = DYNAMIC_FAMILIES['crossing'](1)
     scenario = dataclasses.replace(scenario, moving_obstacles=scenario.moving_obstacles[:1])
     radius = scenario.moving_obstacles[0].radius + scenario.robot.radius
-    poses = np.zeros((9, 3))
-    # at rest, driving on (+x), then backing away (-x) from a person ahead
-    poses[:, 0] = [0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.3, 0.2, 0.1]
+    poses = np.zeros((12, 3))
+    # at rest, driving on (+x), backing away (-x) from a person ahead, then
+    # driving across (+x, a little away) in front of a person coming from the side (+y)
+    poses[:, 0] = [0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.3, 0.2, 0.1, 0.1, 0.2, 0.3]
+    poses[:, 1] = [0.0] * 10 + [-0.02, -0.04]
     people = np.array([[5.0, 0.0], [radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
                        [0.2 + radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
-                       [5.0, 0.0], [0.1 + radius - 0.01, 0.0]])[:, None, :]
+                       [5.0, 0.0], [0.1 + radius - 0.01, 0.0], [5.0, 0.0],
+                       [0.2, radius - 0.03], [5.0, 0.0]])[:, None, :]
 
     @dataclasses.dataclass
     class Recorded:

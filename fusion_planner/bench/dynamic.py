@@ -13,11 +13,12 @@ Notes
   ``--seed`` gives scenarios the controller was never tuned on.
 - **Avoidable contacts**: every contact with a static obstacle, and every
   contact with a moving obstacle except those that began while the robot
-  stood still (slower than :data:`AT_REST_MPS`) or was backing away from
-  that obstacle (moving away from it faster than :data:`AT_REST_MPS`): then
-  the person walked into the robot (people here ignore it), which the robot
+  stood still (slower than :data:`AT_REST_MPS`) or was retreating from that
+  obstacle (moving within 60 degrees of straight away from it): then the
+  person walked into the robot (people here ignore it), which the robot
   could not prevent by its own motion (passive safety: a robot in motion is
-  responsible for its contacts, one at rest or retreating is not).
+  responsible for its contacts, one at rest or retreating is not). A robot
+  driving across a person's way is in motion, not retreating.
 """
 
 import concurrent.futures
@@ -38,9 +39,11 @@ from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 EXIT_OK = 0
 #: The scenario families whose difficulty includes moving obstacles.
 MOVING_FAMILIES = ('mixed', 'corridors') + tuple(DYNAMIC_FAMILIES)
-#: Below this speed [m/s] the robot is at rest when a contact begins; above
-#: it, away from the obstacle, it is retreating.
+#: Below this speed [m/s] the robot is at rest when a contact begins.
 AT_REST_MPS = 0.05
+#: A robot whose velocity points within 60 degrees of straight away from an
+#: obstacle (closing speed at most this times its speed) retreats from it.
+RETREAT_COSINE = -0.5
 #: Default scenarios per family and batch seed; quick mode's scenarios.
 DEFAULT_SCENARIOS = 50
 DEFAULT_SEED = 101
@@ -72,8 +75,10 @@ def contacts_at_rest(scenario, result):
     towards = touched - poses[begins, 0:2]
     closing = np.einsum('ij,ij->i', velocity, towards) / np.maximum(
         np.hypot(*towards.T), 1e-9)
-    at_rest = np.hypot(*velocity.T) < AT_REST_MPS
-    return int(np.sum(at_rest | (closing < -AT_REST_MPS)))
+    speed = np.hypot(*velocity.T)
+    at_rest = speed < AT_REST_MPS
+    retreating = closing <= RETREAT_COSINE * speed
+    return int(np.sum(at_rest | retreating))
 
 
 def run_one(family, scenario_seed):
