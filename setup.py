@@ -31,6 +31,9 @@ setup(
     extras_require={
         # The ROS 2 Jazzy wheels, for machines without a sourced ROS install.
         'ros': ['ros-jazzy-rclpy[fastrtps]', 'ros-jazzy-common-interfaces'],
+        # The compiled search loop (about 10x faster; 35 MB + llvmlite 170 MB
+        # installed); without it the search runs in pure Python.
+        'fast': ['numba'],
         # Pictures and animated GIFs of plans and runs.
         'plot': ['matplotlib', 'pillow'],
         # MCAP recordings of the demo (mcap-ros2-support reads them back).
@@ -43,9 +46,10 @@ setup(
     entry_points={
         'console_scripts': [
             'fusion-planner = fusion_planner.cli.main:main',
-            'global_planner = fusion_planner.ros.global_planner:main',
-            'local_planner = fusion_planner.ros.local_planner:main',
-            'simulator = fusion_planner.ros.simulator:main',
+            # checks ROS 2 first (one line, exit 2 without it), then runs the node's main
+            'global_planner = fusion_planner.ros.executables:global_planner',
+            'local_planner = fusion_planner.ros.executables:local_planner',
+            'simulator = fusion_planner.ros.executables:simulator',
         ],
     },
 )

@@ -215,3 +215,22 @@ def test_clearance_at_points_equals_the_whole_map(occupied, yaw, seed):
         np.testing.assert_allclose(grid.world_to_grid(corners),
                                    grid.world_to_grid(grid.grid_to_world(
                                        grid.world_to_grid(corners))), atol=1e-9)
+
+
+def test_prepare_builds_everything_a_plan_needs_once():
+    """After ``prepare`` a plan builds nothing: same grid, no new tables."""
+    from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
+    occupied = np.zeros((60, 80), bool)
+    occupied[10:50, 40] = True
+    grid = GridMap(occupied, 0.05)
+    planner = GlobalPlanner(grid, PlannerConfig(robot_radius=0.1))
+    assert planner.prepare() >= 0.0
+    padded = planner._search_grid()
+    built = (dict(padded._allowed), dict(padded._tables), dict(grid._traversable))
+    planner.plan(grid.world_of((30, 5)), grid.world_of((30, 75)))
+    assert planner._search_grid() is padded
+    assert (padded._allowed, padded._tables, grid._traversable) == built
+    planner.reconfigure(robot_radius=0.2)  # another inflation: prepared again
+    planner.prepare()
+    assert planner._search_grid() is not padded
+    assert 0.2 in grid._traversable

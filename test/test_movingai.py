@@ -84,12 +84,14 @@ def test_selection_spans_all_maps_and_buckets(benchmark_dir):
     assert min(totals.values()) >= MIN_ROWS, totals
 
 
+@pytest.mark.parametrize('algorithm', ('astar', 'jps'))
 @pytest.mark.parametrize('name', MAPS)
-def test_astar8_returns_optimal_length(benchmark_dir, name):
+def test_astar8_returns_optimal_length(benchmark_dir, name, algorithm):
+    """Cell by cell and with jump points."""
     prepared, rows = _rows(benchmark_dir, name, ROWS)
-    bad = _mismatches(prepared, rows, policies(['astar'])['astar'])
-    assert not bad, (f'A*-8 missed optimal_length on {len(bad)}/{len(rows)} rows of '
-                     f'{name}: ' + '; '.join(bad[:5]))
+    bad = _mismatches(prepared, rows, policies([algorithm])[algorithm])
+    assert not bad, (f'A*-8 ({algorithm}) missed optimal_length on {len(bad)}/{len(rows)} rows '
+                     f'of {name}: ' + '; '.join(bad[:5]))
 
 
 @pytest.mark.parametrize('name', MAPS)

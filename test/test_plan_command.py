@@ -17,7 +17,7 @@ from fusion_planner.core.map_files import load_map, save_map_server
 PAPER_YAML = str(REPO / 'config' / 'maps' / 'paper.yaml')
 
 JSON_KEYS = {'found', 'length_m', 'expanded', 'key_points', 'turning_deg',
-             'min_clearance_m', 'time_s', 'path', 'error'}
+             'min_clearance_m', 'time_s', 'prepare_s', 'path', 'error'}
 
 #: An asymmetric MovingAI map, top row first. File cell (col 0, row 0) is
 #: free, its mirror (col 0, row 3) is blocked, so reading rows the wrong
@@ -84,7 +84,7 @@ def test_json_has_every_field_with_its_type(capsys):
     doc = json.loads(out)  # exactly one JSON document
     assert set(doc) == JSON_KEYS
     assert doc['found'] is True and doc['error'] is None
-    for key in ('length_m', 'turning_deg', 'min_clearance_m', 'time_s'):
+    for key in ('length_m', 'turning_deg', 'min_clearance_m', 'time_s', 'prepare_s'):
         assert isinstance(doc[key], float) and math.isfinite(doc[key]), key
     for key in ('expanded', 'key_points'):
         assert isinstance(doc[key], int) and not isinstance(doc[key], bool), key
@@ -299,9 +299,19 @@ def test_plot_writes_a_png(capsys, tmp_path):
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
-def test_plot_into_a_missing_folder_is_bad_input(capsys, tmp_path):
+def test_plot_into_a_missing_folder_creates_it(capsys, tmp_path):
     png = tmp_path / 'no' / 'such' / 'plan.png'
     status, _, err = run_cli(capsys, 'plan', '--map', PAPER_YAML, '--start', '1.5', '1.5',
                              '--goal', '19.5', '19.5', '--plot', str(png))
-    assert status == 2
+    assert status == 0, err
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_plot_below_a_file_is_refused_before_planning(capsys, tmp_path):
+    (tmp_path / 'taken').write_text('a file')
+    status, out, err = run_cli(capsys, 'plan', '--map', PAPER_YAML, '--start', '1.5', '1.5',
+                               '--goal', '19.5', '19.5', '--plot',
+                               str(tmp_path / 'taken' / 'plan.png'))
+    assert status == 2 and out == ''  # nothing planned
     assert_one_line_error(err)
+    assert 'is not a folder' in err

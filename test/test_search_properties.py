@@ -13,6 +13,9 @@ alone (nothing of :mod:`fusion_planner.core.global_planning.neighbourhood` is us
 - refined paths keep their clearance, keep their ends and are not longer
   than the grid path;
 - the limits: an expansion budget, a time budget, cancellation, start == goal.
+
+Jump-point pruning is one of the optimal planners here; test_search_engines.py
+checks it on structured maps (rooms, mazes) as well.
 """
 
 import math
@@ -55,6 +58,9 @@ OPTIMAL_PLANNERS = {
     'astar-8-octile': (8, search.astar(8)),
     'astar-8-euclidean': (8, search.astar(8, 'euclidean')),
     'astar-16-euclidean': (16, search.astar(16)),
+    'jump-points-8-octile': (8, search.astar(8, jump_points=True)),
+    'jump-points-8-euclidean': (8, search.astar(8, 'euclidean', jump_points=True)),
+    'jump-points-dijkstra-8': (8, search.SearchPolicy(heuristic='zero', jump_points=True)),
 }
 
 #: The improved A* per neighbourhood, with an admissible heuristic each.
@@ -302,6 +308,7 @@ INFLATION_PLANNERS = {
     'dijkstra-8': (8, search.dijkstra(8)),
     'astar-4-manhattan': (4, search.astar(4)),
     'astar-8-octile': (8, search.astar(8)),
+    'astar-8-planner-default': (8, PlannerConfig(algorithm='astar', refine=False).policy()),
     'astar-16-euclidean': (16, search.astar(16)),
     'improved-8': (8, PlannerConfig(refine=False).policy()),
 }

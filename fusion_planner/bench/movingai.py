@@ -43,15 +43,19 @@ from fusion_planner.core.global_planning.planner import PlannerConfig
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 #: Algorithms of this benchmark, in table order. ``astar`` is A* with the
-#: 8-neighbourhood and the octile heuristic.
-ALGORITHMS = ('astar', 'dijkstra', 'improved')
+#: 8-neighbourhood and the octile heuristic, expanding cell by cell;
+#: ``jps`` the same with jump-point pruning.
+ALGORITHMS = ('astar', 'jps', 'dijkstra', 'improved')
 #: The algorithms that must return exactly ``optimal_length``.
-OPTIMAL_ALGORITHMS = ('astar', 'dijkstra')
+OPTIMAL_ALGORITHMS = ('astar', 'jps', 'dijkstra')
 #: Labels of the algorithms in the table.
-LABELS = {'astar': 'A*-8', 'dijkstra': 'Dijkstra', 'improved': 'improved A*'}
+LABELS = {'astar': 'A*-8', 'jps': 'A*-8 jump points', 'dijkstra': 'Dijkstra',
+          'improved': 'improved A*'}
 #: Largest accepted gap to the file's ``optimal_length`` [cells]; the file
 #: rounds to 8 decimals, so 1e-4 leaves room for summation order only.
 OPTIMAL_TOLERANCE = 1e-4
+#: Where the maps and scenarios are published.
+DATA_URL = 'https://www.movingai.com/benchmarks/grids.html'
 #: Environment variable that overrides the default data folder.
 DATA_ENV = 'FUSION_PLANNER_BENCHMARKS'
 #: Seed of the shuffled row order (the order only affects the ETA).
@@ -162,6 +166,22 @@ def default_data_dir():
     return repository.parent / 'shared' / 'benchmarks' / 'movingai'
 
 
+def missing_data(where, alternative=None):
+    """The :class:`MapError` of MovingAI data that is not there, saying where to get it.
+
+    Parameters
+    ----------
+    where : str or os.PathLike
+        The missing folder or file.
+    alternative : str, optional
+        Another way out, e.g. ``'give --quick'``.
+    """
+    other = f', or {alternative}' if alternative else ''
+    return MapError(f'MovingAI benchmark data {where} not found: put the maps and their '
+                    f'scenarios (NAME.map, NAME.map.scen from {DATA_URL}) in a folder and give '
+                    f'--maps DIR (or set {DATA_ENV}){other}')
+
+
 def sample_rows(rows, count=None):
     """Pick ``count`` rows spread evenly over the difficulty buckets.
 
@@ -221,10 +241,7 @@ def find_scenario_sets(folder, rows_per_map=None, only=None):
     """
     folder = pathlib.Path(folder)
     if not folder.is_dir():
-        raise MapError(
-            f'MovingAI benchmark folder {folder} not found; the data is expected in '
-            f'../shared/benchmarks/movingai beside the repository, or give --maps DIR '
-            f'(or set {DATA_ENV})')
+        raise missing_data(folder)
     scen_paths = sorted(folder.glob('*.map.scen'))
     if not scen_paths:
         raise MapError(f'no MovingAI scenario file (*.map.scen) in {folder}')
@@ -266,6 +283,7 @@ def policies(algorithms, config=None):
     config = config or PlannerConfig()
     table = {
         'astar': search.astar(8, 'octile'),
+        'jps': search.astar(8, 'octile', jump_points=True),
         'dijkstra': search.dijkstra(8),
         'improved': replace(config, algorithm='improved', neighbourhood=8).policy(),
     }

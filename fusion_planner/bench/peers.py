@@ -4,9 +4,12 @@ Runs our Dijkstra, A*-8 and improved A* (without and with refinement)
 beside pyastar2d (C++), tcod's path-finding (C), pathfinding (pure Python),
 python-motion-planning (Python with numba helpers) and networkx, on sampled
 rows of the MovingAI maps, a 1024 x 1024 map with 20 % random obstacles
-(corner to corner) and Nav2's planner benchmarking protocol (2000 x 2000
+(corner to corner), Nav2's planner benchmarking protocol (2000 x 2000
 maps at 0.05 m with 10, 15 and 20 % obstacles, 100 start/goal pairs at least
-3 m apart, robot-radius inflation), and prints per map and planner the
+3 m apart, robot-radius inflation) and generated building floors (4000 x
+4000 at 0.05 m, rooms of 20 m with 1.5 m doors and furniture, robot radius
+0.2 m, pairs at least 100 m apart; ours beside pyastar2d and tcod only),
+and prints per map and planner the
 median planning time, expansions where known, path length over the optimum
 of the same corner rule, the time to prepare the map, and (with --memory)
 the peak memory.
@@ -14,9 +17,13 @@ the peak memory.
 Notes
 -----
 - Peers are the optional ``bench`` extra (``pip install
-  fusion_planner[bench]``); a peer that is not installed is skipped with a
-  note. They never become runtime dependencies: each is imported inside its
-  adapter.
+  'fusion_planner[bench]'``); a peer asked for (``--planners``, default all)
+  that does not import stops the run before it starts, with one line naming
+  the extra. They never become runtime dependencies: each is imported
+  inside its adapter.
+- The MovingAI suite reads the maps of ``bench movingai``; when they are
+  absent and the suites were not chosen (``--suites``), the other suites
+  run and a note says why MovingAI was left out.
 - Corner rule and cost model (:data:`PLANNERS`): ours, tcod (configured
   with a diagonal condition), pathfinding (``only_when_no_obstacle``),
   python-motion-planning (``strict_collision``) and networkx (the graph
@@ -70,8 +77,11 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from fusion_planner.bench import movingai as movingai_bench
+from fusion_planner.bench.building_map import BuildingSpec, building_map, far_pairs
+from fusion_planner.cli.output_paths import prepare_file
 from fusion_planner.cli.progress import Progress
-from fusion_planner.core.global_planning import metrics
+from fusion_planner.cli.requirements import require
+from fusion_planner.core.global_planning import kernel, metrics
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.grid import GridMap
@@ -80,7 +90,7 @@ from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerCo
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
-SUITES = ('movingai', 'random', 'nav2', 'big')
+SUITES = ('movingai', 'random', 'nav2', 'big', 'building')
 DEFAULT_SUITES = ('movingai', 'random', 'nav2')
 
 #: Side [cells], obstacle fraction and seed of the random map.
@@ -110,6 +120,17 @@ MAX_PAIR_DRAWS = 100_000
 BIG_SIDE = 4000
 BIG_DENSITY = 0.2
 
+#: The building floors (:mod:`building_map`): seeds (one map each), pairs
+#: per map, least start-goal distance [m], robot radius [m]; quick mode's
+#: floor side [m]. Only our planners and the compiled peers run on them.
+BUILDING_SEEDS = (1, 2, 3)
+BUILDING_PAIRS = 2
+BUILDING_MIN_DISTANCE_M = 100.0
+BUILDING_ROBOT_RADIUS = 0.2
+QUICK_BUILDING_SIDE_M = 40.0
+QUICK_BUILDING_MIN_DISTANCE_M = 15.0
+COMPILED_PEERS = ('pyastar2d', 'tcod')
+
 #: MovingAI rows per map by default (sampled evenly over the buckets).
 DEFAULT_MOVINGAI_ROWS = 10
 #: Per planner and map: once its planning time exceeds this [s], the rest of
@@ -132,8 +153,13 @@ QUICK_NAV2_SIDE_BUFFER = 10
 QUICK_MOVINGAI_ROWS = 2
 QUICK_BIG_SIDE = 200
 
-#: Median-time targets of issue 6.
-TARGET_IMPROVED_OVER_PYASTAR = 1.5
+#: Targets on the median planning CPU time of the improved A* and A*-8 over
+#: pyastar2d's on the same inflated grid: on the random map, and on the
+#: building floors and the MovingAI maps whose name holds one of
+#: :data:`STRUCTURED_MAPS` (walls that force detours).
+TARGET_OVER_PYASTAR_RANDOM = 1.0
+TARGET_OVER_PYASTAR_STRUCTURED = 2.0
+STRUCTURED_MAPS = ('maze', 'room')
 TARGET_IMPROVED_LENGTH_RATIO = 1.03
 TARGET_PREP_S = 0.5
 TARGET_BIG_MEMORY_MB = 1024.0
@@ -171,15 +197,20 @@ class PlannerInfo:
     package: str = ''
 
 
+#: What our search loop runs in (:mod:`kernel`).
+OUR_LOOP = 'numba' if kernel.AVAILABLE else 'Python'
+
 #: Every planner of the benchmark, in table order.
 PLANNERS = {
-    'dijkstra': PlannerInfo('dijkstra', 'ours Dijkstra', 'ours', 'Python', False,
+    'dijkstra': PlannerInfo('dijkstra', 'ours Dijkstra', 'ours', OUR_LOOP, False,
                             'octile: 1 / sqrt 2', True),
-    'astar': PlannerInfo('astar', 'ours A*-8', 'ours', 'Python', False,
+    'astar': PlannerInfo('astar', 'ours A*-8', 'ours', OUR_LOOP, False,
                          'octile: 1 / sqrt 2, octile h', True),
-    'improved': PlannerInfo('improved', 'ours improved A*', 'ours', 'Python', False,
+    'jps': PlannerInfo('jps', 'ours A*-8 jump points', 'ours', OUR_LOOP, False,
+                       'octile: 1 / sqrt 2, octile h', True),
+    'improved': PlannerInfo('improved', 'ours improved A*', 'ours', OUR_LOOP, False,
                             'octile: 1 / sqrt 2, weighted Euclidean h', False),
-    'improved_refined': PlannerInfo('improved_refined', 'ours improved+refine', 'ours', 'Python',
+    'improved_refined': PlannerInfo('improved_refined', 'ours improved+refine', 'ours', OUR_LOOP,
                                     False, 'any-angle after refinement', False),
     'pyastar2d': PlannerInfo('pyastar2d', 'pyastar2d', 'peer', 'C++', True,
                              'Chebyshev: diagonal 1, L-inf h', False, 'pyastar2d'),
@@ -405,7 +436,8 @@ def build_scenario(spec):
     spec : dict
         ``{'suite': 'random', 'side', 'density', 'seed', 'repeats'}``,
         ``{'suite': 'nav2' or 'big', 'side', 'density', 'seed', 'pairs',
-        'side_buffer'}`` or ``{'suite': 'movingai', 'map', 'scen', 'rows'}``.
+        'side_buffer'}``, ``{'suite': 'building', 'side_m', 'seed', 'pairs',
+        'min_distance_m'}`` or ``{'suite': 'movingai', 'map', 'scen', 'rows'}``.
 
     Returns
     -------
@@ -449,6 +481,23 @@ def build_scenario(spec):
                         description=f'{side} x {side} at {NAV2_RESOLUTION} m, '
                                     f'{100 * spec["density"]:.0f} % rectangles, '
                                     f'robot radius {NAV2_ROBOT_RADIUS} m, {len(pairs)} pairs')
+    if suite == 'building':
+        floor = BuildingSpec(side_m=spec['side_m'])
+        occupied = building_map(floor, spec['seed'])
+        if 'pair_cells' in spec:
+            pairs = [tuple(tuple(cell) for cell in pair) for pair in spec['pair_cells']]
+        else:
+            traversable = GridMap(occupied, floor.resolution).traversable(BUILDING_ROBOT_RADIUS)
+            pairs = far_pairs(traversable, spec['pairs'],
+                              spec['min_distance_m'] / floor.resolution, spec['seed'])
+        side = occupied.shape[0]
+        return Scenario('building', f'building{side}-s{spec["seed"]}', occupied,
+                        floor.resolution, BUILDING_ROBOT_RADIUS, pairs, spec=spec,
+                        description=f'{side} x {side} at {floor.resolution} m, rooms of '
+                                    f'{floor.room_m:g} m, doors of {floor.door_m:g} m, '
+                                    f'furniture, robot radius {BUILDING_ROBOT_RADIUS} m, '
+                                    f'{len(pairs)} pairs at least {spec["min_distance_m"]:g} m '
+                                    'apart')
     if suite == 'movingai':
         grid = load_movingai(spec['map'])
         rows = read_scenarios(spec['scen'])
@@ -511,6 +560,13 @@ def scenario_specs(suites, args):
     if 'big' in suites:
         specs.append({'suite': 'big', 'side': QUICK_BIG_SIDE if quick else BIG_SIDE,
                       'density': BIG_DENSITY, 'seed': NAV2_SEED, 'pairs': 1, 'side_buffer': 0})
+    if 'building' in suites:
+        for seed in BUILDING_SEEDS[:1] if quick else BUILDING_SEEDS:
+            specs.append({'suite': 'building',
+                          'side_m': QUICK_BUILDING_SIDE_M if quick else BuildingSpec().side_m,
+                          'seed': seed, 'pairs': 1 if quick else BUILDING_PAIRS,
+                          'min_distance_m': (QUICK_BUILDING_MIN_DISTANCE_M if quick
+                                             else BUILDING_MIN_DISTANCE_M)})
     return specs
 
 
@@ -632,7 +688,8 @@ class _Ours:
     def prepare(self, scenario, free):
         config = {
             'dijkstra': PlannerConfig(algorithm='dijkstra', refine=False),
-            'astar': PlannerConfig(algorithm='astar', refine=False),
+            'astar': PlannerConfig(algorithm='astar', refine=False, jump_points=False),
+            'jps': PlannerConfig(algorithm='astar', refine=False),
             'improved': PlannerConfig(algorithm='improved', refine=False),
             'improved_refined': PlannerConfig(algorithm='improved', refine=True),
         }[self.name]
@@ -795,16 +852,9 @@ def make_adapter(name):
     return _Ours(name) if name in OURS else _ADAPTERS[name]()
 
 
-def peer_available(name):
-    """``(True, '')`` when a peer imports, else ``(False, reason)``."""
-    module = {'pyastar2d': 'pyastar2d', 'tcod': 'tcod', 'pathfinding': 'pathfinding',
-              'pmp': 'python_motion_planning', 'networkx': 'networkx'}[name]
-    try:
-        __import__(module)
-    except Exception as err:  # an import can fail in many ways; report it
-        return False, (f'not installed ({type(err).__name__}: {err}); '
-                       f'pip install {PLANNERS[name].package}')
-    return True, ''
+#: The module each peer is imported as.
+PEER_MODULES = {'pyastar2d': 'pyastar2d', 'tcod': 'tcod', 'pathfinding': 'pathfinding',
+                'pmp': 'python_motion_planning', 'networkx': 'networkx'}
 
 
 # ---------------------------------------------------------------------------
@@ -1023,7 +1073,7 @@ def format_report(header, scenarios, rows, extras, notes, verdicts):
                 f'{_fmt(row.peak_rss_over_map_mb, ".0f"):>8}'
                 + (f'  ({row.note})' if row.note else ''))
     if verdicts:
-        lines += ['', 'targets of issue 6 (medians of this run):']
+        lines += ['', 'targets (medians of this run; info: no target set on this map):']
         lines += [f'  [{v["status"]}] {v["target"]}: {v["detail"]}' for v in verdicts]
     return '\n'.join(lines)
 
@@ -1052,27 +1102,30 @@ def evaluate_targets(rows, sides):
             scenarios.append(r.scenario)
             suite_of[r.scenario] = r.suite
     verdicts = []
-    # The targets are set on the random map; the MovingAI maps (maze, rooms,
-    # ...) get the same figures for information.
-    for scenario in (s for s in scenarios if suite_of[s] in ('random', 'movingai')):
-        informative = suite_of[scenario] != 'random'
-        ours = by.get((scenario, 'improved'))
+    for scenario in (s for s in scenarios if suite_of[s] in ('random', 'movingai', 'building')):
+        limit = speed_target(scenario, suite_of[scenario])
         fast = by.get((scenario, 'pyastar2d'))
         tcod = by.get((scenario, 'tcod'))
-        if ours and fast and fast.found:
-            limit = TARGET_IMPROVED_OVER_PYASTAR * fast.cpu_median_ms
-            verdicts.append(_verdict(
-                f'{scenario}: improved A* <= {TARGET_IMPROVED_OVER_PYASTAR}x pyastar2d (CPU)',
-                None if informative else ours.cpu_median_ms <= limit,
-                f'{ours.cpu_median_ms:.1f} ms vs {fast.cpu_median_ms:.1f} ms = '
-                f'{ours.cpu_median_ms / fast.cpu_median_ms:.2f}x (wall '
-                f'{ours.time_median_ms:.1f} vs {fast.time_median_ms:.1f} ms)'))
-        if ours and tcod and tcod.found:
-            verdicts.append(_verdict(
-                f'{scenario}: improved A* faster than tcod A* (CPU)',
-                None if informative else ours.cpu_median_ms < tcod.cpu_median_ms,
-                f'{ours.cpu_median_ms:.1f} ms vs {tcod.cpu_median_ms:.1f} ms = '
-                f'{ours.cpu_median_ms / tcod.cpu_median_ms:.2f}x'))
+        for name in ('improved', 'jps', 'astar'):
+            ours = by.get((scenario, name))
+            label = PLANNERS[name].label
+            if ours and ours.found and fast and fast.found:
+                ratio = ours.cpu_median_ms / fast.cpu_median_ms
+                verdicts.append(_verdict(
+                    f'{scenario}: {label} ' + ('vs' if limit is None else f'<= {limit:g}x')
+                    + ' pyastar2d (CPU)',
+                    None if limit is None else ratio <= limit,
+                    f'{ours.cpu_median_ms:.1f} ms vs {fast.cpu_median_ms:.1f} ms = '
+                    f'{ratio:.2f}x (wall {ours.time_median_ms:.1f} vs '
+                    f'{fast.time_median_ms:.1f} ms)'))
+            if ours and ours.found and tcod and tcod.found:
+                verdicts.append(_verdict(
+                    f'{scenario}: {label} faster than tcod A* (CPU)',
+                    None if limit is None else ours.cpu_median_ms < tcod.cpu_median_ms,
+                    f'{ours.cpu_median_ms:.1f} ms vs {tcod.cpu_median_ms:.1f} ms = '
+                    f'{ours.cpu_median_ms / tcod.cpu_median_ms:.2f}x'))
+        ours = by.get((scenario, 'improved'))
+        informative = suite_of[scenario] != 'random'
         if ours and ours.found:
             verdicts.append(_verdict(
                 f'{scenario}: improved A* path <= {TARGET_IMPROVED_LENGTH_RATIO} x optimum',
@@ -1100,10 +1153,13 @@ def evaluate_targets(rows, sides):
             verdicts.append(_verdict(
                 f'{scenario}: A*-8 faster than every pure-Python peer (CPU)', not slower,
                 ', '.join(compared) + (f'; slower than {", ".join(slower)}' if slower else '')))
-        if astar.optimal_exact is not None and astar.found:
-            verdicts.append(_verdict(f'{scenario}: A*-8 exactly optimal',
-                                     astar.optimal_exact == astar.found,
-                                     f'{astar.optimal_exact}/{astar.found} paths at the optimum'))
+    for scenario in scenarios:
+        for name in ('astar', 'jps'):
+            row = by.get((scenario, name))
+            if row is not None and row.optimal_exact is not None and row.found:
+                verdicts.append(_verdict(f'{scenario}: {PLANNERS[name].label} exactly optimal',
+                                         row.optimal_exact == row.found,
+                                         f'{row.optimal_exact}/{row.found} paths at the optimum'))
     preps = [r for r in rows
              if r.suite == 'nav2' and r.planner in OURS and not math.isnan(r.prep_s)]
     if preps:
@@ -1126,6 +1182,16 @@ def evaluate_targets(rows, sides):
     return verdicts
 
 
+def speed_target(scenario, suite):
+    """Largest median CPU-time ratio over pyastar2d set for a scenario, or None."""
+    if suite == 'random':
+        return TARGET_OVER_PYASTAR_RANDOM
+    if suite == 'building' or (suite == 'movingai'
+                               and any(word in scenario for word in STRUCTURED_MAPS)):
+        return TARGET_OVER_PYASTAR_STRUCTURED
+    return None
+
+
 def _verdict(target, ok, detail):
     """A verdict; ``ok`` None marks a figure given for information."""
     status = 'info' if ok is None else ('met' if ok else 'NOT met')
@@ -1138,15 +1204,16 @@ def _verdict(target, ok, detail):
 
 def add_arguments(parser):
     """Options of ``fusion-planner bench peers``."""
-    parser.add_argument('--suites', nargs='+', choices=SUITES, default=list(DEFAULT_SUITES),
+    parser.add_argument('--suites', nargs='+', choices=SUITES, default=None,
                         metavar='SUITE',
                         help=f'any of {", ".join(SUITES)} (default: '
-                             f'{" ".join(DEFAULT_SUITES)}; big is the {BIG_SIDE} x {BIG_SIDE} '
-                             'memory run of our planners)')
+                             f'{" ".join(DEFAULT_SUITES)}, movingai only when its maps are '
+                             f'there; big is the {BIG_SIDE} x {BIG_SIDE} memory run of our '
+                             'planners)')
     parser.add_argument('--planners', nargs='+', choices=list(PLANNERS), default=list(PLANNERS),
                         metavar='NAME',
-                        help=f'any of {", ".join(PLANNERS)} (default all; peers that are not '
-                             'installed are skipped with a note)')
+                        help=f'any of {", ".join(PLANNERS)} (default all; the peers need the '
+                             'bench extra)')
     parser.add_argument('--maps', metavar='DIR', default=None,
                         help='MovingAI folder (default as for bench movingai)')
     parser.add_argument('--only', nargs='+', metavar='NAME', default=None,
@@ -1188,24 +1255,27 @@ def run(args):
     Raises
     ------
     MapError, InvalidInput
-        Missing MovingAI data (when that suite is asked for), bad options.
+        Missing MovingAI data (when that suite is asked for with
+        ``--suites``), bad options.
+    MissingExtra, OutputPathError
+        A peer asked for that does not import, ``--plot`` without the
+        ``plot`` extra, an output path that cannot be written (all before
+        any work).
     """
     if args.rows < 1 or args.pairs < 1:
         raise InvalidInput('--rows and --pairs must be positive')
     if not args.budget > 0:
         raise InvalidInput(f'--budget must be a positive number of seconds, got {args.budget!r}')
-    suites = [s for s in SUITES if s in args.suites]
-    notes = []
-    planners = []
-    for name in PLANNERS:
-        if name not in args.planners:
-            continue
-        if name in PEERS:
-            ok, reason = peer_available(name)
-            if not ok:
-                notes.append(f'{PLANNERS[name].label} skipped: {reason}')
-                continue
-        planners.append(name)
+    planners = [name for name in PLANNERS if name in args.planners]
+    require('bench', 'bench peers',
+            modules=[PEER_MODULES[name] for name in planners if name in PEERS],
+            alternative='leave the peers out with --planners')
+    if args.plot:
+        require('plot', 'bench peers --plot')
+        prepare_file(args.plot, '--plot')
+    if args.json_out:
+        prepare_file(args.json_out, '--json-out')
+    suites, notes = chosen_suites(args)
     specs = scenario_specs(suites, args)
     progress = None if args.no_progress else Progress(len(specs), 'peers')
     scenarios, rows, extras = [], [], {}
@@ -1214,7 +1284,11 @@ def run(args):
         if progress is not None:
             progress.advance(0, f'building {spec["suite"]} map', force=True)
         scenario = build_scenario(spec)
-        chosen = [p for p in planners if p in OURS] if scenario.suite == 'big' else planners
+        chosen = planners
+        if scenario.suite == 'big':
+            chosen = [p for p in planners if p in OURS]
+        elif scenario.suite == 'building':
+            chosen = [p for p in planners if p in OURS + COMPILED_PEERS]
         scenario_rows, extra = run_scenario(scenario, chosen, args.budget, progress, unit=1.0)
         if args.memory or scenario.suite == 'big':
             spec = dict(spec, pair_cells=[[list(a), list(b)] for a, b in scenario.pairs[:1]])
@@ -1260,6 +1334,24 @@ def run(args):
     return EXIT_FAILED if failed else EXIT_OK
 
 
+def chosen_suites(args):
+    """The suites to run, in :data:`SUITES` order, and notes on those left out.
+
+    Without ``--suites`` (``args.suites`` None) the :data:`DEFAULT_SUITES`
+    run, MovingAI only when its maps are there; a MovingAI suite asked for
+    by name needs them (:func:`scenario_specs` raises).
+    """
+    if args.suites is not None:
+        return [s for s in SUITES if s in args.suites], []
+    suites = list(DEFAULT_SUITES)
+    folder = pathlib.Path(args.maps) if args.maps else movingai_bench.default_data_dir()
+    if args.maps is None and not folder.is_dir():
+        suites.remove('movingai')
+        return suites, [f'movingai suite left out: no MovingAI maps in {folder} (see '
+                        f'bench movingai --help; --maps DIR or ${movingai_bench.DATA_ENV})']
+    return suites, []
+
+
 def plot_times(rows, scenario_names, path):
     """Bar chart of the median CPU time per planner and map (log scale) to PNG.
 
@@ -1271,17 +1363,10 @@ def plot_times(rows, scenario_names, path):
     path : str or os.PathLike
         Output PNG.
 
-    Raises
-    ------
-    InvalidInput
-        If matplotlib is not installed.
     """
-    try:
-        import matplotlib
-        matplotlib.use('Agg')
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise InvalidInput('--plot needs matplotlib (pip install matplotlib)') from None
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
     names = [n for n in PLANNERS if any(r.planner == n and r.pairs for r in rows)]
     by = {(r.scenario, r.planner): r for r in rows}
     fig, ax = plt.subplots(figsize=(max(8.0, 1.1 * len(scenario_names) + 4), 4.8))

@@ -18,6 +18,7 @@ TARGETS = {
     'local': 'fusion_planner.bench.local',
     'refine': 'fusion_planner.bench.refine',
     'families': 'fusion_planner.bench.families',
+    'node': 'fusion_planner.bench.node_latency',
     'tracker': 'fusion_planner.bench.tracker',
     'dynamic': 'fusion_planner.bench.dynamic',
 }

@@ -20,13 +20,18 @@ This is a contract other tools rely on:
   ``found`` (bool), ``length_m``, ``expanded``, ``key_points``,
   ``turning_deg``, ``min_clearance_m``, ``time_s`` (numbers, null when no
   path; ``min_clearance_m`` is also null on a map without obstacles, where
-  it is infinite), ``path`` (list of ``[x, y]`` [m], map frame; empty when
+  it is infinite), ``prepare_s`` (the map's preparation once it is loaded:
+  inflation, search grid, move tables, compiled search loop; apart from
+  ``time_s``, which is the plan alone; null when the map was not
+  prepared), ``path`` (list of ``[x, y]`` [m], map frame; empty when
   no path) and ``error`` (null, or one sentence).
 - Exit status: 0 a path was found, 1 no path exists (or the search budget
   ran out), 2 bad input (unreadable map, start or goal outside the map or in
-  an obstacle, NaN, bad options, a ``--plot`` file that cannot be written;
-  in that last case the plan is still printed). Errors are one line on
-  stderr, never a traceback.
+  an obstacle, NaN, bad options, a ``--plot`` file that cannot be written,
+  the ``plot`` extra missing). ``--plot`` is checked before planning (see
+  :mod:`fusion_planner.cli.output_paths` and
+  :mod:`fusion_planner.cli.requirements`). Errors are one line on stderr,
+  never a traceback.
 - Defaults: the improved A*, the 8-neighbourhood, refinement on, and a
   robot radius and safety distance of 0 m for every map file (map files
   carry no robot; give ``--robot-radius`` / ``--safety-distance`` for a real
@@ -38,7 +43,9 @@ import json
 import math
 import sys
 
+from fusion_planner.cli.output_paths import prepare_file
 from fusion_planner.cli.plotting import plan_title, plot_plan
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import (
     GoalOutsideMapBounds, InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut,
     PlanningError, StartOutsideMapBounds)
@@ -88,8 +95,18 @@ def add_parser(subparsers):
 
 
 def run(args):
-    """Run ``plan``; returns the exit status (0 found, 1 no path, 2 bad input)."""
-    grid = start = goal = result = None
+    """Run ``plan``; returns the exit status (0 found, 1 no path, 2 bad input).
+
+    Raises
+    ------
+    MissingExtra, OutputPathError
+        ``--plot`` without the ``plot`` extra or into a path that cannot be
+        written (before any planning).
+    """
+    if args.plot:
+        require('plot', 'plan --plot')
+        prepare_file(args.plot, '--plot')
+    grid = start = goal = result = prepare_s = None
     error = None
     try:
         grid = load_map(args.map)
@@ -98,7 +115,9 @@ def run(args):
             algorithm=args.algorithm, neighbourhood=args.neighbourhood,
             refine=not args.no_refine, robot_radius=args.robot_radius,
             safety_distance=args.safety_distance)
-        result = GlobalPlanner(grid, config).plan(start, goal, return_expanded=bool(args.plot))
+        planner = GlobalPlanner(grid, config)
+        prepare_s = planner.prepare()
+        result = planner.plan(start, goal, return_expanded=bool(args.plot))
         status = EXIT_OK
     except (NoValidPathCouldBeFound, PlannerTimedOut) as err:
         status, error = EXIT_NO_PATH, str(err)
@@ -112,9 +131,9 @@ def run(args):
             error = plot_error if error is None else f'{error}; {plot_error}'
 
     if args.json:
-        print(json.dumps(result_json(result, error)))
+        print(json.dumps(result_json(result, error, prepare_s)))
     elif result is not None:
-        print(summary(result, args))
+        print(summary(result, args, prepare_s))
     if error is not None:
         print(f'error: {error}', file=sys.stderr)
     return status
@@ -191,7 +210,7 @@ def cell_centre(grid, col_row, name, outside_error, movingai):
     return float(x), float(y)
 
 
-def result_json(result, error=None):
+def result_json(result, error=None, prepare_s=None):
     """The ``--json`` object of a plan (or of a failure when ``result`` is None).
 
     Parameters
@@ -199,18 +218,22 @@ def result_json(result, error=None):
     result : PlanResult or None
     error : str or None
         One sentence, or None.
+    prepare_s : float or None
+        Time the map's preparation took [s], or None.
 
     Returns
     -------
     dict
         Keys ``found``, ``length_m``, ``expanded``, ``key_points``,
-        ``turning_deg``, ``min_clearance_m``, ``time_s``, ``path``, ``error``;
-        only finite numbers or None, so that the JSON is strict.
+        ``turning_deg``, ``min_clearance_m``, ``time_s``, ``prepare_s``,
+        ``path``, ``error``; only finite numbers or None, so that the JSON is
+        strict.
     """
+    prepare = None if prepare_s is None else _finite(prepare_s)
     if result is None:
         return {'found': False, 'length_m': None, 'expanded': None, 'key_points': None,
                 'turning_deg': None, 'min_clearance_m': None, 'time_s': None,
-                'path': [], 'error': error}
+                'prepare_s': prepare, 'path': [], 'error': error}
     m = result.metrics
     return {
         'found': True,
@@ -220,13 +243,14 @@ def result_json(result, error=None):
         'turning_deg': _finite(m.turning_deg),
         'min_clearance_m': _finite(m.min_clearance_m),
         'time_s': _finite(m.time_s),
+        'prepare_s': prepare,
         'path': [[float(x), float(y)] for x, y in result.path],
         'error': error,
     }
 
 
-def summary(result, args):
-    """Short human-readable report of a plan (a few lines)."""
+def summary(result, args, prepare_s):
+    """Short human-readable report of a plan (a few lines); ``prepare_s`` [s]."""
     m = result.metrics
     clearance = 'no obstacles' if not math.isfinite(m.min_clearance_m) \
         else f'{m.min_clearance_m:.3f} m'
@@ -238,7 +262,8 @@ def summary(result, args):
         f'turning {m.turning_deg:.1f} deg',
         f'  min clearance {clearance}, {m.expanded} cells expanded, '
         f'{m.time_s * 1e3:.2f} ms',
-        f'  {_ALGORITHM_NAMES[args.algorithm]}, {args.neighbourhood}-neighbourhood, {refined}',
+        f'  {_ALGORITHM_NAMES[args.algorithm]}, {args.neighbourhood}-neighbourhood, {refined}; '
+        f'map prepared in {prepare_s * 1e3:.1f} ms (not included above)',
     ])
 
 

@@ -19,8 +19,10 @@ Conventions (REP-103, the same as nav_msgs/OccupancyGrid):
 
 What is computed, and when (each at most once per map, on first use): the
 whole clearance map (:attr:`GridMap.clearance`, a Euclidean distance
-transform, ``scipy.ndimage.distance_transform_edt``) only when a caller asks
-for it. Planning does not: an inflated mask (:meth:`GridMap.traversable`)
+transform: :mod:`distance_transform` from the per-column distances when
+numba is installed, else ``scipy.ndimage.distance_transform_edt``) only when
+a caller asks for it (``GlobalPlanner.prepare`` does). Planning alone does
+not: an inflated mask (:meth:`GridMap.traversable`)
 needs the exact distance only up to the radius, which a bounded distance
 transform gives in a few vectorised passes; and the clearance of a path's
 cells (:meth:`GridMap.clearance_of_cells`) is computed exactly around those
@@ -33,6 +35,7 @@ import mmap
 import numpy as np
 from scipy import ndimage
 
+from fusion_planner.core import distance_transform
 from fusion_planner.core.errors import InvalidInput, MapError
 
 #: Default cap on the number of cells of a map (4000 x 4000 fits). Larger
@@ -230,11 +233,17 @@ class GridMap:
         """
         if self._clearance is None:
             if self.occupied.any():
-                unit = ndimage.distance_transform_edt(~self.occupied)
-                # Back to exact integer squared distances, so every clearance
-                # of this class is the same float expression of one integer.
-                np.square(unit, out=unit)
-                np.rint(unit, out=unit)
+                unit = None
+                if distance_transform.AVAILABLE:
+                    column = self._column_distances()
+                    far = np.iinfo(np.uint16).max if column.dtype == np.uint16 else _FAR_CELLS
+                    unit = distance_transform.squared_distances(column, far)
+                if unit is None:
+                    unit = ndimage.distance_transform_edt(~self.occupied)
+                    # Back to exact integer squared distances, so every clearance
+                    # of this class is the same float expression of one integer.
+                    np.square(unit, out=unit)
+                    np.rint(unit, out=unit)
                 np.sqrt(unit, out=unit)
                 edt = np.multiply(unit, self.resolution, out=unit)
             else:

@@ -126,7 +126,7 @@ class GlobalPlannerParams:
     unknown_is_occupied: bool = True
     occupied_threshold: int = DEFAULT_OCCUPIED_THRESHOLD
     max_map_cells: int = DEFAULT_MAX_CELLS
-    planning_time_limit: float = 2.0
+    planning_time_limit: float = 10.0
     goal_tolerance: float = 0.5
     publish_expanded: bool = False
     mark_obstacles: bool = True
@@ -170,7 +170,8 @@ PARAMETER_SPECS = (
                   "'pose_with_covariance' (PoseWithCovarianceStamped on amcl_pose)",
                   read_only=True, choices=tuple(POSE_TOPICS)),
     ParameterSpec('algorithm', 'improved',
-                  "search algorithm: 'dijkstra', 'astar' or 'improved' (the paper's improved A*)",
+                  "search algorithm: 'dijkstra', 'astar' (with the 8-neighbourhood: jump points, "
+                  "optimal) or 'improved' (the paper's improved A*)",
                   choices=ALGORITHMS),
     ParameterSpec('neighbourhood', 8, 'search neighbourhood [cells]: 4, 8 or 16',
                   int_range(4, 16, 4)),
@@ -190,7 +191,7 @@ PARAMETER_SPECS = (
                   'a map value at or above this is an obstacle [percent]', int_range(1, 100)),
     ParameterSpec('max_map_cells', DEFAULT_MAX_CELLS,
                   'maps with more cells are refused [cells]', int_range(1, 400_000_000)),
-    ParameterSpec('planning_time_limit', 2.0, 'wall-time budget of one search [s]',
+    ParameterSpec('planning_time_limit', 10.0, 'wall-time budget of one search [s]',
                   float_range(0.001, 600.0)),
     ParameterSpec('goal_tolerance', 0.5,
                   'a goal_pose in an obstacle moves to the nearest free cell within this [m]',
@@ -366,9 +367,10 @@ class GlobalPlannerNode(ManagedNode):
             return
         old = self._planner
         params = self._params.current
-        self._load_map(msg, params)
+        prepare_s = self._load_map(msg, params)
         self.get_logger().info(
-            f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted')
+            f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted, '
+            f'prepared for planning in {prepare_s:.3f} s')
         if self._goal is None:
             self._diagnostics.update(WARN, 'map accepted; waiting for a goal',
                                      map_cells=msg.info.width * msg.info.height)
@@ -608,7 +610,12 @@ class GlobalPlannerNode(ManagedNode):
         return self._marked_planner
 
     def _load_map(self, msg, params):
-        """Convert and cache a map (MapError leaves the previous map in place)."""
+        """Convert, cache and prepare a map; return the preparation time [s].
+
+        The preparation (inflation, search grid, compiled search loop) is
+        done here, once per map, so that plans pay for the search alone.
+        MapError leaves the previous map in place.
+        """
         try:
             grid = conv.occupancy_grid_to_grid_map(
                 msg, self._frame_id, params.unknown_is_occupied,
@@ -623,6 +630,7 @@ class GlobalPlannerNode(ManagedNode):
         self._layer = params.obstacle_layer(grid)
         self._marked_planner = None
         self._components = None
+        return self._planner.prepare()
 
     def _same_map(self, msg):
         """Whether ``msg`` repeats the current map (e.g. a latched republish)."""

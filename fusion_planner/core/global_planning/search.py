@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fusion_planner.core.global_planning import neighbourhood as nbh
+from fusion_planner.core.global_planning import kernel, neighbourhood as nbh
 from fusion_planner.core.errors import (
     InvalidInput, NoValidPathCouldBeFound, PlannerCancelled, PlannerTimedOut)
 
@@ -54,6 +54,14 @@ _PAD = 2
 #: Limits and cancellation are checked at the first expansion and then once
 #: per this many expansions (the expansion budget itself is exact).
 _CHECK_EVERY = 1024
+#: The compiled loop returns to Python to poll them every this many
+#: expansions (a few milliseconds).
+_COMPILED_SLICE = 1 << 15
+#: Initial capacity of the compiled loop's heap arrays (doubled as needed).
+_INITIAL_HEAP = 1 << 12
+
+#: Implementations of the loop (:func:`grid_search`'s ``engine``).
+ENGINES = ('compiled', 'python')
 
 #: Per-search cell state, one byte per padded cell: 0 never reached;
 #: 1..16 reached, the value being 1 + the index of the move (in
@@ -63,12 +71,10 @@ _START_CODE = 127
 _CLOSED = 128
 _CODE_BITS = 127
 
-#: sqrt(2) - 2, the octile correction of eq. (4).
-_ROOT2_MINUS_2 = math.sqrt(2.0) - 2.0
-#: Heuristic kinds as small integers for the inline computation.
-_ZERO, _MANHATTAN, _EUCLIDEAN, _OCTILE = range(4)
-_HEURISTIC_CODES = {'zero': _ZERO, 'manhattan': _MANHATTAN, 'euclidean': _EUCLIDEAN,
-                    'octile': _OCTILE}
+#: Heuristic kinds as the small integers of :mod:`kernel`.
+_ZERO = kernel.ZERO
+_HEURISTIC_CODES = {'zero': kernel.ZERO, 'manhattan': kernel.MANHATTAN,
+                    'euclidean': kernel.EUCLIDEAN, 'octile': kernel.OCTILE}
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,10 @@ class SearchPolicy:
     variable_neighbourhood : bool
         Search only the moves heading towards the goal (section 1.3.1),
         widening when they make no progress.
+    jump_points : bool
+        Jump-point pruning (8-neighbourhood, fixed neighbourhood only): the
+        same optimal cost with far fewer expansions where open areas and
+        walls alternate. See :func:`grid_search`.
     """
 
     neighbourhood: int = 8
@@ -98,6 +108,7 @@ class SearchPolicy:
     beta: float = 1.0
     gamma: float = 0.0
     variable_neighbourhood: bool = False
+    jump_points: bool = False
 
     def __post_init__(self):
         if self.neighbourhood not in nbh.SUPPORTED:
@@ -110,6 +121,8 @@ class SearchPolicy:
                 raise InvalidInput(f'{name} must be a positive number, got {value!r}')
         if not (isinstance(self.gamma, (int, float)) and math.isfinite(self.gamma) and self.gamma >= 0):
             raise InvalidInput(f'gamma must be a non-negative number, got {self.gamma!r}')
+        if self.jump_points and (self.neighbourhood != 8 or self.variable_neighbourhood):
+            raise InvalidInput('jump points need the fixed 8-neighbourhood')
 
 
 def dijkstra(neighbourhood=8):
@@ -117,15 +130,16 @@ def dijkstra(neighbourhood=8):
     return SearchPolicy(neighbourhood=neighbourhood, heuristic='zero')
 
 
-def astar(neighbourhood=8, heuristic=None):
-    """Policy of the classic A* (eq. 1).
+def astar(neighbourhood=8, heuristic=None, jump_points=False):
+    """Policy of the classic A* (eq. 1), optionally with jump points (8 only).
 
     The default heuristic is the tightest admissible one for the
     neighbourhood: Manhattan for 4, octile for 8, Euclidean for 16.
     """
     if heuristic is None:
         heuristic = {4: 'manhattan', 8: 'octile', 16: 'euclidean'}.get(neighbourhood, 'octile')
-    return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic)
+    return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic,
+                        jump_points=jump_points)
 
 
 def improved_astar(alpha=1.0, beta=1.0, gamma=0.2, neighbourhood=8, heuristic='euclidean'):
@@ -261,7 +275,7 @@ class PaddedGrid:
         self.passable = bytearray(padded.data)
         self._allowed = {}
         self._tables = {}
-        self._cost_pool = []
+        self._pools = {'d': [], 'q': []}
 
     def index(self, cell):
         """Flat index of a ``(row, col)`` cell."""
@@ -343,19 +357,76 @@ class PaddedGrid:
             self._tables[neighbourhood] = tables
         return tables
 
-    def _take_costs(self):
-        """A float cost array of padded-grid size (contents undefined).
+    def allowed_array(self, neighbourhood):
+        """:meth:`allowed_moves` as a numpy array (uint8, or uint16 for 16), no copy."""
+        allowed = self.allowed_moves(neighbourhood)
+        return np.frombuffer(allowed, dtype=np.uint8 if isinstance(allowed, bytes) else np.uint16)
 
+    def kernel_moves(self, neighbourhood):
+        """The move table of the compiled loop (see :func:`kernel.run`), cached.
+
+        Returns
+        -------
+        tuple of ndarray
+            ``(offsets, costs, d_rows, d_cols, forward_bits, rest_bits)``:
+            per move its flat offset (int64), cost [cells] (float64), row
+            and column step (int64); per goal sector the bitmask of its
+            forward moves and of the others (int64).
+        """
+        key = ('kernel', neighbourhood)
+        arrays = self._tables.get(key)
+        if arrays is None:
+            table = nbh.moves(neighbourhood)
+            forward_idx, rest_idx = nbh.sector_split(table)
+            arrays = (np.array([dr * self.width + dc for dr, dc, _, _ in table], np.int64),
+                      np.array([cost for _, _, cost, _ in table], np.float64),
+                      np.array([dr for dr, _, _, _ in table], np.int64),
+                      np.array([dc for _, dc, _, _ in table], np.int64),
+                      np.array([_bits(idx) for idx in forward_idx], np.int64),
+                      np.array([_bits(idx) for idx in rest_idx], np.int64))
+            self._tables[key] = arrays
+        return arrays
+
+    def prepare(self, neighbourhood):
+        """Build everything a search with ``neighbourhood`` needs, now.
+
+        The legal-move bitmasks, the move tables of both loops, and the
+        compiled loop itself (loaded from numba's cache, or compiled the
+        first time on a machine) by a search on a tiny grid.
+        """
+        self.allowed_moves(neighbourhood)
+        self.move_tables(neighbourhood)
+        self.kernel_moves(neighbourhood)
+        if kernel.AVAILABLE:
+            _warm_up(neighbourhood)
+
+    def _take(self, typecode):
+        """A per-cell array of padded-grid size (contents undefined).
+
+        ``typecode`` ``'d'`` (float costs) or ``'q'`` (int64 parents).
         Backed by an anonymous memory mapping, so only the pages a search
-        writes take memory; kept for the next search on this grid.
+        writes take memory; give it back with :meth:`_give` for the next
+        search on this grid.
         """
         try:
-            return self._cost_pool.pop()
+            return self._pools[typecode].pop()
         except IndexError:
-            return memoryview(mmap.mmap(-1, 8 * len(self.passable))).cast('d')
+            return memoryview(mmap.mmap(-1, 8 * len(self.passable))).cast(typecode)
 
-    def _give_costs(self, costs):
-        self._cost_pool.append(costs)
+    def _give(self, values):
+        self._pools[values.format].append(values)
+
+
+def _bits(indices):
+    """Bitmask with the bits of ``indices`` set."""
+    return sum(1 << i for i in indices)
+
+
+def _warm_up(neighbourhood):
+    """Load the compiled loop for a neighbourhood by one search on a 3 x 3 grid."""
+    tiny = PaddedGrid(np.ones((3, 3), bool))
+    for policy in (astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)):
+        grid_search(tiny, (0, 0), (2, 2), policy)
 
 
 def _shifted(values, offset, reach):
@@ -365,29 +436,12 @@ def _shifted(values, offset, reach):
 
 
 def _sector(d_row, d_col):
-    """:func:`neighbourhood.sector_of` for integer offsets, without trigonometry.
-
-    The direction is near an axis when it lies within 22.5 degrees of it,
-    i.e. ``|minor| < tan(22.5 deg) |major|``, tested exactly in integers as
-    ``(|minor| + |major|)**2 < 2 major**2`` (tan 22.5 deg = sqrt 2 - 1).
-    """
-    ar = -d_row if d_row < 0 else d_row
-    ac = -d_col if d_col < 0 else d_col
-    total = ar + ac
-    square = total * total
-    if square < 2 * ac * ac:  # near the column axis
-        return 0 if d_col >= 0 else 4
-    if square < 2 * ar * ar:  # near the row axis
-        return 2 if d_row > 0 else 6
-    if d_row > 0:
-        return 1 if d_col > 0 else 3
-    if d_row == 0:  # only the start == goal offset (0, 0) gets here
-        return 0
-    return 7 if d_col > 0 else 5
+    """:func:`neighbourhood.sector_of` for integer offsets, without trigonometry."""
+    return kernel.goal_sector(-d_row, -d_col)
 
 
 def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=None,
-                cancel=None, return_expanded=False):
+                cancel=None, return_expanded=False, engine=None):
     """Best-first search from ``start`` to ``goal`` on a padded grid.
 
     Parameters
@@ -404,10 +458,15 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     time_limit_s : float, optional
         Stop with :class:`PlannerTimedOut` after this much wall time [s].
     cancel : callable, optional
-        Polled at the first expansion and then every 1024 expansions;
-        returning True stops the search with :class:`PlannerCancelled`.
+        Polled at the first expansion and then every 1024 expansions (every
+        :data:`_COMPILED_SLICE` with the compiled loop); returning True stops
+        the search with :class:`PlannerCancelled`.
     return_expanded : bool
         Fill :attr:`SearchResult.expanded_cells`.
+    engine : str, optional
+        ``'compiled'`` (the loop of :mod:`kernel`, needs numba) or
+        ``'python'``; both return the same result. Default: compiled when
+        numba is installed.
 
     Returns
     -------
@@ -449,14 +508,14 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     >>> result.cells.tolist(), round(result.cost, 3)
     ([[0, 0], [0, 1], [0, 2], [1, 2], [2, 2]], 4.0)
     """
+    if engine is None:
+        engine = 'compiled' if kernel.AVAILABLE else 'python'
+    if engine not in ENGINES:
+        raise InvalidInput(f'engine must be one of {ENGINES}, got {engine!r}')
+    if engine == 'compiled' and not kernel.AVAILABLE:
+        raise InvalidInput('the compiled search needs numba, which is not installed')
     width = grid.width
-    neighbourhood = policy.neighbourhood
-    allowed = grid.allowed_moves(neighbourhood)
-    full, forward, rest, offsets = grid.move_tables(neighbourhood)
-    variable = policy.variable_neighbourhood
-    alpha = float(policy.alpha)
     kind = _HEURISTIC_CODES[policy.heuristic]
-
     s = grid.index(start)
     t = grid.index(goal)
     goal_row, goal_col = divmod(t, width)
@@ -466,139 +525,215 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
     else:
         start_distance = _heuristic(kind, start_row - goal_row, start_col - goal_col)
         weight = policy.beta * heuristic_weight(start_distance, start_distance, policy.gamma)
-    sqrt = math.sqrt
-    push, pop = heapq.heappush, heapq.heappop
-    deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
-    budget = math.inf if max_expansions is None else max_expansions
-
-    closed_bit = _CLOSED
-    euclidean = kind == _EUCLIDEAN
-    octile = kind == _OCTILE
-    zero = kind == _ZERO
-    root2_minus_2 = _ROOT2_MINUS_2
+    limits = _Limits(max_expansions, time_limit_s, cancel)
     state = bytearray(len(grid.passable))
-    g = grid._take_costs()
+    g = grid._take('d')
     try:
         state[s] = _START_CODE
         g[s] = 0.0
         h0 = weight * _heuristic(kind, start_row - goal_row, start_col - goal_col)
-        heap = [(h0, h0, s)]
-        generated = 1
-        expanded = 0
-        next_check = 1  # poll the limits at the first expansion
-        found = False
-        while heap:
-            j = pop(heap)[2]
-            if j >= 0:
-                code = state[j]
-                if code & closed_bit:
-                    continue  # a stale entry of a node already expanded
-                if j == t:
-                    found = True
-                    break
-                state[j] = code | closed_bit
-                expanded += 1
-                if expanded >= next_check:
-                    _check_limits(expanded, budget, deadline, time_limit_s, cancel)
-                    next_check = min(expanded + _CHECK_EVERY, budget)
-                widened = not variable
-            else:
-                # Second pass of a reduced expansion: its remaining moves.
-                j = ~j
-                widened = True
-            row, col = divmod(j, width)
-            d_row = row - goal_row
-            d_col = col - goal_col
-            mask = allowed[j]
-            if variable:
-                # _sector(-d_row, -d_col), inline: the goal direction's sector.
-                a_row = -d_row if d_row < 0 else d_row
-                a_col = -d_col if d_col < 0 else d_col
-                square = (a_row + a_col) * (a_row + a_col)
-                if square < 2 * a_col * a_col:
-                    sector = 4 if d_col > 0 else 0
-                elif square < 2 * a_row * a_row:
-                    sector = 6 if d_row > 0 else 2
-                elif d_row < 0:
-                    sector = 1 if d_col < 0 else 3
-                elif d_row == 0:
-                    sector = 0
-                else:
-                    sector = 7 if d_col < 0 else 5
-                moves = rest[sector][mask] if widened else forward[sector][mask]
-            else:
-                moves = full[mask]
-            gj = g[j]
-            probe = False
-            while True:  # at most three passes: forward, probe, rest
-                opened = False
-                best_f = math.inf
-                best_h = 0.0
-                for offset, cost, dr, dc, move_code in moves:
-                    k = j + offset
-                    state_k = state[k]
-                    if state_k & closed_bit:
-                        continue
-                    ng = gj + cost
-                    if state_k and ng >= g[k]:
-                        continue
-                    # The heuristic term beta * h * w_n, inline (eqs. 2-4, 8).
-                    if euclidean:
-                        y = d_row + dr
-                        x = d_col + dc
-                        hk = weight * sqrt(x * x + y * y)
-                    elif octile:
-                        y = d_row + dr
-                        x = d_col + dc
-                        if y < 0:
-                            y = -y
-                        if x < 0:
-                            x = -x
-                        hk = weight * (x + y + root2_minus_2 * (x if x < y else y))
-                    elif zero:
-                        hk = 0.0
-                    else:
-                        hk = weight * (abs(d_row + dr) + abs(d_col + dc))
-                    f = alpha * ng + hk
-                    if probe:
-                        if f < best_f:
-                            best_f = f
-                            best_h = hk
-                        continue
-                    if not state_k:
-                        generated += 1
-                    g[k] = ng
-                    state[k] = move_code
-                    push(heap, (f, hk, k))
-                    opened = True
-                if probe:
-                    # Re-queue the node at the best f its remaining moves
-                    # would give, so they are tried exactly when A* would
-                    # need them; when that entry would come up next anyway,
-                    # widen now instead.
-                    if best_f == math.inf:
-                        break
-                    entry = (best_f, best_h, ~j)
-                    if heap and heap[0] < entry:
-                        push(heap, entry)
-                        break
-                    moves = rest[sector][mask]
-                    probe = False
-                    continue
-                if widened:
-                    break
-                widened = True
-                moves = rest[sector][mask]
-                # No progress ahead: widen at once; else only measure the rest.
-                probe = opened
-        if not found:
+        if policy.jump_points:
+            loop = _jump_loop
+        else:
+            loop = _compiled_loop if engine == 'compiled' else _python_loop
+        chain, expanded, generated = loop(grid, policy, s, t, kind, weight, h0, state, g,
+                                          limits)
+        if chain is None:
             raise NoValidPathCouldBeFound(
                 f'no path from cell {tuple(start)} to cell {tuple(goal)} '
                 f'({expanded} cells expanded)')
         cost = g[t]
     finally:
-        grid._give_costs(g)
+        grid._give(g)
+    expanded_cells = None
+    if return_expanded:
+        closed = np.flatnonzero(np.frombuffer(state, dtype=np.uint8) & _CLOSED)
+        expanded_cells = grid.cells(closed)
+    return SearchResult(cells=grid.cells(chain), cost=cost, expanded=expanded,
+                        generated=generated, expanded_cells=expanded_cells)
 
+
+def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
+    """The search loop in pure Python; see :func:`grid_search`.
+
+    Returns ``(path, expanded, generated)``, the path a list of flat
+    indices from start to goal or None; fills ``state`` and ``g``.
+    """
+    width = grid.width
+    goal_row, goal_col = divmod(t, width)
+    allowed = grid.allowed_moves(policy.neighbourhood)
+    full, forward, rest, _ = grid.move_tables(policy.neighbourhood)
+    variable = policy.variable_neighbourhood
+    alpha = float(policy.alpha)
+    push, pop = heapq.heappush, heapq.heappop
+    closed_bit = _CLOSED
+    goal_sector = kernel.goal_sector
+    heuristic_term = kernel.heuristic_term
+    heap = [(h0, h0, s)]
+    generated = 1
+    expanded = 0
+    next_check = 1  # poll the limits at the first expansion
+    found = False
+    while heap:
+        j = pop(heap)[2]
+        if j >= 0:
+            code = state[j]
+            if code & closed_bit:
+                continue  # a stale entry of a node already expanded
+            if j == t:
+                found = True
+                break
+            state[j] = code | closed_bit
+            expanded += 1
+            if expanded >= next_check:
+                limits.check(expanded)
+                next_check = min(expanded + _CHECK_EVERY, limits.budget)
+            widened = not variable
+        else:
+            # Second pass of a reduced expansion: its remaining moves.
+            j = ~j
+            widened = True
+        row, col = divmod(j, width)
+        d_row = row - goal_row
+        d_col = col - goal_col
+        mask = allowed[j]
+        if variable:
+            sector = goal_sector(d_row, d_col)
+            moves = rest[sector][mask] if widened else forward[sector][mask]
+        else:
+            moves = full[mask]
+        gj = g[j]
+        probe = False
+        while True:  # at most three passes: forward, probe, rest
+            opened = False
+            best_f = math.inf
+            best_h = 0.0
+            for offset, cost, dr, dc, move_code in moves:
+                k = j + offset
+                state_k = state[k]
+                if state_k & closed_bit:
+                    continue
+                ng = gj + cost
+                if state_k and ng >= g[k]:
+                    continue
+                hk = heuristic_term(kind, weight, d_row + dr, d_col + dc)  # eqs. 2-4, 8
+                f = alpha * ng + hk
+                if probe:
+                    if f < best_f:
+                        best_f = f
+                        best_h = hk
+                    continue
+                if not state_k:
+                    generated += 1
+                g[k] = ng
+                state[k] = move_code
+                push(heap, (f, hk, k))
+                opened = True
+            if probe:
+                # Re-queue the node at the best f its remaining moves
+                # would give, so they are tried exactly when A* would
+                # need them; when that entry would come up next anyway,
+                # widen now instead.
+                if best_f == math.inf:
+                    break
+                entry = (best_f, best_h, ~j)
+                if heap and heap[0] < entry:
+                    push(heap, entry)
+                    break
+                moves = rest[sector][mask]
+                probe = False
+                continue
+            if widened:
+                break
+            widened = True
+            moves = rest[sector][mask]
+            # No progress ahead: widen at once; else only measure the rest.
+            probe = opened
+    return _traced(grid, policy, state, t) if found else None, expanded, generated
+
+
+def _compiled_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
+    """The search loop of :mod:`kernel`, run in slices; see :func:`grid_search`.
+
+    Returns as :func:`_python_loop`.
+    """
+    allowed = grid.allowed_array(policy.neighbourhood)
+    moves = grid.kernel_moves(policy.neighbourhood)
+    state_array = np.frombuffer(state, dtype=np.uint8)
+    g_array = np.frombuffer(g, dtype=np.float64)
+
+    def run_slice(heap, counts, pause_at):
+        return kernel.run(allowed, moves, grid.width, t, kind, float(policy.alpha), weight,
+                          policy.variable_neighbourhood, state_array, g_array, heap, counts,
+                          pause_at)
+
+    found, expanded, generated = _in_slices(run_slice, s, h0, limits)
+    return _traced(grid, policy, state, t) if found else None, expanded, generated
+
+
+def _jump_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
+    """Jump-point search (:func:`kernel.jump_run`), run in slices.
+
+    Returns as :func:`_python_loop`; the path is filled in between the
+    jump points, cell by cell.
+    """
+    free = np.frombuffer(grid.passable, dtype=np.uint8)
+    state_array = np.frombuffer(state, dtype=np.uint8)
+    g_array = np.frombuffer(g, dtype=np.float64)
+    parent = grid._take('q')
+    parent_array = np.frombuffer(parent, dtype=np.int64)
+
+    def run_slice(heap, counts, pause_at):
+        return kernel.jump_run(free, grid.width, t, kind, float(policy.alpha), weight,
+                               state_array, g_array, parent_array, heap, counts, pause_at)
+
+    try:
+        found, expanded, generated = _in_slices(run_slice, s, h0, limits)
+        path = None
+        if found:
+            jumps = [t]
+            while jumps[-1] != s:  # bounded: parents lead back to the start
+                jumps.append(parent[jumps[-1]])
+            path = _filled(jumps[::-1], grid.width)
+        return path, expanded, generated
+    finally:
+        grid._give(parent)
+
+
+def _in_slices(run_slice, s, h0, limits):
+    """Run a compiled loop from start ``s`` in slices, polling the limits between.
+
+    ``run_slice(heap, counts, pause_at)`` advances the search (see
+    :func:`kernel.run`). Returns ``(found, expanded, generated)``.
+    """
+    heap = np.empty((_INITIAL_HEAP, 3))
+    heap[0] = (h0, h0, s)
+    counts = np.array([1, 0, 1], dtype=np.int64)  # heap size, expanded, generated
+    limits.check(0)
+    while True:
+        status = run_slice(heap, counts, min(counts[1] + _COMPILED_SLICE, limits.budget))
+        if status == kernel.HEAP_FULL:
+            heap = np.concatenate([heap, np.empty_like(heap)])
+        elif status == kernel.PAUSED:
+            limits.check(int(counts[1]))
+        else:
+            return status == kernel.FOUND, int(counts[1]), int(counts[2])
+
+
+def _filled(jumps, width):
+    """Flat indices of every cell on straight or diagonal runs between jump points."""
+    path = [jumps[0]]
+    for a, b in zip(jumps, jumps[1:]):
+        (ra, ca), (rb, cb) = divmod(a, width), divmod(b, width)
+        steps = max(abs(rb - ra), abs(cb - ca))
+        step = ((rb > ra) - (rb < ra)) * width + (cb > ca) - (cb < ca)
+        path.extend(range(a + step, b + step, step) if steps else ())
+    return path
+
+
+def _traced(grid, policy, state, t):
+    """The path to ``t`` rebuilt from the move codes in ``state``, start first."""
+    offsets = grid.move_tables(policy.neighbourhood)[3]
     chain = [t]
     j = t
     for _ in range(len(state)):  # bounded: a path visits each cell once
@@ -608,33 +743,38 @@ def grid_search(grid, start, goal, policy, max_expansions=None, time_limit_s=Non
         j -= offsets[code - 1]
         chain.append(j)
     chain.reverse()
-    expanded_cells = None
-    if return_expanded:
-        closed = np.flatnonzero(np.frombuffer(state, dtype=np.uint8) & _CLOSED)
-        expanded_cells = grid.cells(closed)
-    return SearchResult(cells=grid.cells(chain), cost=cost, expanded=expanded,
-                        generated=generated, expanded_cells=expanded_cells)
+    return chain
 
 
 def _heuristic(kind, d_row, d_col):
     """Unweighted heuristic [cells] of an offset to the goal (eqs. 2-4)."""
-    y, x = abs(d_row), abs(d_col)
-    if kind == _EUCLIDEAN:
-        return math.sqrt(x * x + y * y)
-    if kind == _OCTILE:
-        return x + y + _ROOT2_MINUS_2 * min(x, y)
-    if kind == _MANHATTAN:
-        return float(x + y)
-    return 0.0
+    return kernel.heuristic_term(kind, 1.0, d_row, d_col)
 
 
-def _check_limits(expanded, budget, deadline, time_limit_s, cancel):
-    """Raise when the expansion budget, the deadline or the caller says stop."""
-    if expanded >= budget:
-        raise PlannerTimedOut(
-            f'search stopped after {expanded} expansions without reaching the goal')
-    if deadline is not None and time.monotonic() > deadline:
-        raise PlannerTimedOut(
-            f'search stopped after {time_limit_s:g} s without reaching the goal')
-    if cancel is not None and cancel():
-        raise PlannerCancelled('search cancelled by the caller')
+class _Limits:
+    """The stop conditions of one search: expansion budget, deadline, caller.
+
+    Parameters
+    ----------
+    max_expansions : int or None
+    time_limit_s : float or None
+        Wall time [s] from now.
+    cancel : callable or None
+    """
+
+    def __init__(self, max_expansions, time_limit_s, cancel):
+        self.budget = math.inf if max_expansions is None else max_expansions
+        self.time_limit_s = time_limit_s
+        self.deadline = None if time_limit_s is None else time.monotonic() + time_limit_s
+        self.cancel = cancel
+
+    def check(self, expanded):
+        """Raise when the budget, the deadline or the caller says stop."""
+        if expanded >= self.budget:
+            raise PlannerTimedOut(
+                f'search stopped after {expanded} expansions without reaching the goal')
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise PlannerTimedOut(
+                f'search stopped after {self.time_limit_s:g} s without reaching the goal')
+        if self.cancel is not None and self.cancel():
+            raise PlannerCancelled('search cancelled by the caller')
