@@ -60,7 +60,7 @@ def test_every_subscription_and_service_of_every_node_is_fuzzed(context):
 @pytest.mark.parametrize('strategy, defects', [
     (fuzz.occupancy_grids(bad_only=True), fuzz.MAP_DEFECTS),
     (fuzz.pose_stampeds(bad_only=True), fuzz.POSE_DEFECTS),
-    (fuzz.poses_with_covariance(bad_only=True), fuzz.POSE_DEFECTS),
+    (fuzz.poses_with_covariance(bad_only=True), fuzz.POSE_WITH_COVARIANCE_DEFECTS),
     (fuzz.odometries(bad_only=True), fuzz.ODOMETRY_DEFECTS),
     (fuzz.get_plan_requests(bad_only=True), fuzz.GET_PLAN_DEFECTS),
     (fuzz.paths(bad_only=True), fuzz.PATH_DEFECTS),

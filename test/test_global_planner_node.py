@@ -111,7 +111,9 @@ class Harness:
         self.ctx = ctx
         self.planner = GlobalPlannerNode(
             context=ctx, namespace=self.ns,
-            parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS), *overrides])
+            # map-frame odometry as the pose source unless a test picks amcl_pose
+            parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS),
+                                 Parameter('pose_topic_type', value='odometry'), *overrides])
         self.tester = Node('tester', context=ctx, namespace=self.ns)
         self.plans, self.markers, self.statuses = [], [], []
         t = self.tester
@@ -497,6 +499,7 @@ def test_params_yaml_lists_exactly_the_declared_parameters(context):
     sections = [key for key in doc if key.split('/')[-1] == 'global_planner']
     assert len(sections) == 1, 'params.yaml needs exactly one global_planner section'
     listed = doc[sections[0]]['ros__parameters']
+    assert listed.pop('use_sim_time') is True  # the bundled setup runs on the simulator's clock
     declared = {spec.name for spec in PARAMETER_SPECS}
     assert set(listed) == declared
     node = GlobalPlannerNode(context=context,
@@ -545,3 +548,50 @@ def test_executable_refuses_bad_parameters_with_one_line():
     output, _ = proc.communicate(timeout=30.0)
     assert proc.returncode == 1
     assert 'alpha' in output and 'out of range' in output and 'Traceback' not in output
+
+
+def test_with_use_tf_the_start_and_the_laser_pose_come_from_a_tf_buffer(context):
+    from test_local_planner_node import BufferStandIn
+
+    buffer = BufferStandIn({('map', 'base_link'): (START[0], START[1], 0.0)})
+    node = GlobalPlannerNode(context=context, namespace='/gp_tf', tf_buffer=buffer,
+                             parameter_overrides=[Parameter('robot_radius', value=ROBOT_RADIUS),
+                                                  Parameter('use_tf', value=True)])
+    tester = Node('tf_tester', context=context, namespace='/gp_tf')
+    plans = []
+    tester.create_subscription(Path, 'plan', plans.append, LATCHED_QOS)
+    map_pub = tester.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
+    goal_pub = tester.create_publisher(PoseStamped, 'goal_pose', 10)
+    scan_pub = tester.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    executor.add_node(tester)
+
+    def spin_until(condition):
+        deadline = time.monotonic() + TIMEOUT_S
+        while not condition() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        return condition()
+
+    try:
+        assert not any(name.endswith(('/odom', '/amcl_pose')) for name, _ in
+                       node.get_subscriber_names_and_types_by_node('global_planner', '/gp_tf'))
+        map_pub.publish(map_msg(wall_map()))
+        assert spin_until(lambda: node._start is not None and goal_pub.get_subscription_count())
+        goal_pub.publish(pose_msg(*GOAL))
+        assert spin_until(lambda: plans and plans[-1].poses)
+        path = conv.path_from_msg(plans[-1], 'map')
+        assert math.dist(path[0], START) <= RESOLUTION and ('map', 'base_link') in buffer.asked
+        # A scan whose frame TF does not know is refused, with the frame named.
+        scan = LaserScan()
+        scan.header.frame_id = 'camera'
+        scan.angle_min, scan.angle_increment, scan.range_max = -1.0, 0.1, 5.0
+        scan.ranges = [1.0] * 20
+        assert spin_until(lambda: scan_pub.get_subscription_count() > 0)
+        scan_pub.publish(scan)
+        assert spin_until(lambda: 'camera' in node._diagnostics.values['last_error'])
+        assert ('map', 'camera') in buffer.asked
+    finally:
+        executor.shutdown()
+        tester.destroy_node()
+        node.destroy_node()

@@ -44,7 +44,8 @@ def start_node(module, *ros_args):
 class Manager:
     """Lifecycle client of one node, plus a fake robot around a local planner."""
 
-    def __init__(self, context, node_name):
+    def __init__(self, context, node_name, odom_frame='map'):
+        self.odom_frame = odom_frame
         self.node = rclpy.create_node('lifecycle_manager', context=context)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
@@ -63,7 +64,7 @@ class Manager:
     def _publish_sensors(self):
         stamp = self.node.get_clock().now().to_msg()
         odom = Odometry()
-        odom.header.frame_id, odom.header.stamp = 'map', stamp
+        odom.header.frame_id, odom.header.stamp = self.odom_frame, stamp
         odom.pose.pose.orientation.w = 1.0
         self.odom_pub.publish(odom)
         scan = LaserScan()
@@ -107,7 +108,7 @@ class Manager:
 
 
 def test_local_planner_lifecycle_over_dds_with_a_repeated_transition(context):
-    proc = start_node('local_planner', '-p', 'autostart:=false')
+    proc = start_node('local_planner', '-p', 'autostart:=false', '-p', 'odom_frame_id:=map')
     manager = Manager(context, 'local_planner')
     try:
         assert manager.state() == State.PRIMARY_STATE_UNCONFIGURED

@@ -22,7 +22,8 @@ from hypothesis import strategies as st
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
-from geometry_msgs.msg import Twist, TwistStamped  # noqa: E402
+from geometry_msgs.msg import (  # noqa: E402
+    PoseWithCovarianceStamped, TransformStamped, Twist, TwistStamped)
 from nav_msgs.msg import Odometry, Path  # noqa: E402
 from rcl_interfaces.msg import ParameterType  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -55,17 +56,21 @@ POLL_S = 0.005
 class FakeRobot:
     """A node standing in for the robot and the global planner, plus the local planner."""
 
-    def __init__(self, context, stamped=False, **overrides):
+    def __init__(self, context, stamped=False, tf_buffer=None, **overrides):
+        overrides.setdefault('odom_frame_id', 'map')  # odometry in the map frame, no amcl_pose
+        self.odom_frame = overrides['odom_frame_id']
         self.node = Node('fake_robot', context=context)
         self.planner = lp.LocalPlannerNode(
-            context=context,
+            context=context, tf_buffer=tf_buffer,
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
         self.commands = []  # (wall time [s], v, omega, message)
         self.lock = threading.Lock()
         self.odom_on = True
         self.scan_on = True
         self.last_odom_wall = None
-        self.odom_stamps = set()  # stamps of the odometry sent [s]
+        self.odom_stamps = set()  # stamps of the odometry sent [ns]
+        self.scan_frame = 'base_link'
+        self.scan_ranges = [math.inf] * 180
         self.odom_pub = self.node.create_publisher(Odometry, 'odom', qos_profile_sensor_data)
         self.scan_pub = self.node.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
         self.plan_pub = self.node.create_publisher(Path, 'plan', LATCHED_QOS)
@@ -97,19 +102,19 @@ class FakeRobot:
         stamp = self.node.get_clock().now().to_msg()
         if self.odom_on:
             odom = Odometry()
-            odom.header.frame_id = 'map'
+            odom.header.frame_id = self.odom_frame
             odom.header.stamp = stamp
             odom.pose.pose.orientation.w = 1.0
             self.odom_pub.publish(odom)
-            self.odom_stamps.add(conv.stamp_to_seconds(stamp))
+            self.odom_stamps.add(conv.stamp_to_nanoseconds(stamp))
             self.last_odom_wall = time.monotonic()
         if self.scan_on:
             scan = LaserScan()
-            scan.header.frame_id = 'base_link'
+            scan.header.frame_id = self.scan_frame
             scan.header.stamp = stamp
             scan.angle_min, scan.angle_increment = -math.pi, math.pi / 90
             scan.range_min, scan.range_max = 0.05, 8.0
-            scan.ranges = [math.inf] * 180
+            scan.ranges = self.scan_ranges
             self.scan_pub.publish(scan)
 
     def publish_plan(self, points=((0.0, 0.0), (5.0, 0.0))):
@@ -175,6 +180,79 @@ def test_a_run_that_ends_is_reported_once_with_its_plan_stamp(robot):
     values = {kv.key: kv.value for kv in robot.outcomes[0].values}
     assert robot.outcomes[0].message == 'reached' and int(values['plan_stamp_ns']) == stamp
     assert robot.statuses[-1]['last_outcome'] == 'reached'
+
+
+@pytest.mark.parametrize('robot', [{'odom_frame_id': 'odom'}], indirect=True)
+def test_the_plan_is_brought_into_the_odom_frame_with_the_localization_pose(robot):
+    # The robot stands at the odom origin facing +x; the localizer puts it at
+    # (1, 2) facing +y in the map. A plan going +y in the map is straight ahead.
+    robot.publish_plan(((1.0, 2.0), (1.0, 6.0)))
+    robot.wait(1.0)
+    assert not moving(robot.commands_since(0.0)), 'no localization yet: standing still'
+    assert robot.statuses[-1]['status'] == 'no_localization'
+    amcl_pub = robot.node.create_publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED_QOS)
+    amcl = PoseWithCovarianceStamped()
+    amcl.header.frame_id = 'map'
+    amcl.header.stamp = robot.node.get_clock().now().to_msg()
+    amcl.pose.pose.position.x, amcl.pose.pose.position.y = 1.0, 2.0
+    amcl.pose.pose.orientation = conv.quaternion_of_yaw(math.pi / 2)
+    amcl.pose.covariance[0] = math.nan  # a localizer that lost track: refused
+    amcl_pub.publish(amcl)
+    robot.wait(1.0)
+    assert not moving(robot.commands_since(0.0))
+    amcl.pose.covariance[0] = 0.01
+    amcl_pub.publish(amcl)
+    t0 = time.monotonic()
+    assert robot.wait_until(lambda: len(moving(robot.commands_since(t0))) >= 10, 5.0)
+    ahead = moving(robot.commands_since(t0))[-1]
+    assert ahead[1] > 0.0 and abs(ahead[2]) < 0.1, ahead  # straight ahead, no turn
+
+
+class BufferStandIn:
+    """The tf2_ros.Buffer interface the local planner uses, over a fixed set of transforms."""
+
+    def __init__(self, transforms):
+        self.transforms = transforms  # {(target, source): (x, y, yaw)}
+        self.asked = []
+
+    def can_transform(self, target, source, time):
+        self.asked.append((target, source))
+        return (target, source) in self.transforms
+
+    def lookup_transform(self, target, source, time):
+        x, y, yaw = self.transforms[(target, source)]
+        msg = TransformStamped()
+        msg.header.frame_id, msg.child_frame_id = target, source
+        msg.transform.translation.x, msg.transform.translation.y = x, y
+        msg.transform.rotation = conv.quaternion_of_yaw(yaw)
+        return msg
+
+
+def test_with_use_tf_map_to_odom_and_the_laser_come_from_a_tf_buffer(context):
+    # As in the amcl_pose test, map -> odom puts the robot at (1, 2) facing +y;
+    # the laser is mounted backwards, 0.5 m behind the centre.
+    buffer = BufferStandIn({('map', 'odom'): (1.0, 2.0, math.pi / 2),
+                            ('base_link', 'laser'): (-0.5, 0.0, math.pi)})
+    fake = FakeRobot(context, tf_buffer=buffer, odom_frame_id='odom', use_tf=True)
+    try:
+        assert not any(name.endswith('amcl_pose') for name, _ in
+                       fake.planner.get_subscriber_names_and_types_by_node('local_planner', '/'))
+        fake.scan_frame = 'laser'
+        # Returns 1 m ahead of the laser (within 45 degrees), i.e. behind the robot.
+        fake.scan_ranges = [1.0 if abs(-math.pi + i * math.pi / 90) < math.pi / 4 else math.inf
+                            for i in range(180)]
+        fake.publish_plan(((1.0, 2.0), (1.0, 6.0)))
+        assert fake.wait_until(lambda: len(moving(fake.commands_since(0.0))) >= 10, 5.0)
+        ahead = moving(fake.commands_since(0.0))[-1]
+        assert ahead[1] > 0.0 and abs(ahead[2]) < 0.1, ahead  # straight ahead, no turn
+        points = fake.planner._scan[0]  # odom frame: 1.2-1.5 m behind the robot at the origin
+        assert len(points) and np.all(points[:, 0] < -1.2) and np.all(np.abs(points[:, 1]) < 0.75)
+        # A scan in a frame TF does not know is refused with a reason; the node lives on.
+        fake.scan_frame = 'camera'
+        assert fake.wait_until(lambda: 'camera' in fake.statuses[-1].get('last_error', ''), 5.0)
+    finally:
+        fake.close()
+    assert ('map', 'odom') in buffer.asked and ('base_link', 'laser') in buffer.asked
 
 
 @pytest.mark.parametrize('robot', [{'publish_zero_when_idle': True}], indirect=True)
@@ -263,7 +341,7 @@ def test_twist_stamped_by_parameter_carries_the_odometry_stamp(context, paramete
         msg = fake.commands_since(0.0)[-1][3]
         assert isinstance(msg, TwistStamped)
         assert msg.header.frame_id == 'base_link'
-        assert conv.stamp_to_seconds(msg.header.stamp) in fake.odom_stamps
+        assert conv.stamp_to_nanoseconds(msg.header.stamp) in fake.odom_stamps
     finally:
         fake.close()
 
@@ -314,6 +392,7 @@ def test_every_follower_and_field_coefficient_is_a_described_parameter_in_params
             assert len(descriptor.floating_point_range) == 1, spec.name
     doc = yaml.safe_load((REPO / 'config' / 'params.yaml').read_text())
     section = doc['/**/local_planner']['ros__parameters']
+    assert section.pop('use_sim_time') is True  # the bundled setup runs on the simulator's clock
     assert set(section) == declared
     stale = {s.name: (section[s.name], s.default) for s in lp.PARAMETER_SPECS
              if section[s.name] != s.default}

@@ -36,7 +36,8 @@ from fusion_planner.core.map_files import save_map_server  # noqa: E402
 DEMO_TOPICS = {
     '/map': 'nav_msgs/msg/OccupancyGrid', '/plan': 'nav_msgs/msg/Path',
     '/plan_markers': 'visualization_msgs/msg/MarkerArray', '/local_plan': 'nav_msgs/msg/Path',
-    '/odom': 'nav_msgs/msg/Odometry', '/scan': 'sensor_msgs/msg/LaserScan',
+    '/odom': 'nav_msgs/msg/Odometry', '/ground_truth': 'nav_msgs/msg/Odometry',
+    '/amcl_pose': 'geometry_msgs/msg/PoseWithCovarianceStamped', '/scan': 'sensor_msgs/msg/LaserScan',
     '/obstacles': 'visualization_msgs/msg/MarkerArray', '/tracks': 'visualization_msgs/msg/MarkerArray',
     '/cmd_vel': 'geometry_msgs/msg/Twist',
     '/goal_pose': 'geometry_msgs/msg/PoseStamped', '/goal_outcome': 'std_msgs/msg/String',
@@ -213,7 +214,8 @@ def test_demo_recording_decodes_to_the_run_on_simulated_time(demo_run):
     assert times == sorted(times)
     # stamped on the simulated clock: log time follows the odometry stamps
     assert max(abs(t * 1e-9 - s) for t, s in zip(times, stamps)) < 1.0
-    last = messages['/odom'][-1][1].pose.pose.position
+    assert messages['/odom'][-1][1].header.frame_id == 'odom'
+    last = messages['/ground_truth'][-1][1].pose.pose.position
     assert math.hypot(last.x - 4.75, last.y - 1.55) < 0.5
     plans = [plan for _, plan in messages['/plan']]
     assert plans[0].poses and plans[0].header.frame_id == 'map'

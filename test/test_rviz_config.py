@@ -30,7 +30,8 @@ EXPECTED_DISPLAYS = {
     ('rviz_default_plugins/MarkerArray', '/obstacles'),
     ('rviz_default_plugins/MarkerArray', '/tracks'),
     ('rviz_default_plugins/MarkerArray', '/plan_markers'),
-    ('rviz_default_plugins/Odometry', '/odom'),
+    ('rviz_default_plugins/Odometry', '/ground_truth'),
+    ('rviz_default_plugins/PoseWithCovariance', '/amcl_pose'),
 }
 #: rviz2's names of the QoS policies the layout sets.
 RELIABILITY = {'Reliable': ReliabilityPolicy.RELIABLE,

@@ -16,7 +16,8 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import PoseStamped, Twist, TwistStamped  # noqa: E402
+from geometry_msgs.msg import (  # noqa: E402
+    PoseStamped, PoseWithCovarianceStamped, Twist, TwistStamped)
 from nav_msgs.msg import OccupancyGrid, Odometry, Path  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -53,10 +54,13 @@ class Probe:
             parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()])
         self.node = Node('probe', context=context)
         self.lock = threading.Lock()
-        self.got = {name: [] for name in ('clock', 'odom', 'scan', 'obstacles', 'goal', 'diag')}
+        self.got = {name: [] for name in ('clock', 'odom', 'scan', 'obstacles', 'goal', 'diag',
+                                          'truth', 'amcl')}
         subscriptions = (
             ('clock', Clock, 'clock', 10),
             ('odom', Odometry, 'odom', 10),  # stock QoS (reliable), as RViz and Nav2
+            ('truth', Odometry, 'ground_truth', 10),
+            ('amcl', PoseWithCovarianceStamped, 'amcl_pose', sim.LATCHED_QOS),
             ('scan', LaserScan, 'scan', qos_profile_sensor_data),
             ('obstacles', MarkerArray, 'obstacles', 10),
             ('goal', PoseStamped, 'goal_pose', 10),
@@ -125,10 +129,36 @@ def test_clock_advances_and_never_outruns_the_real_time_factor(probe):
     # the wall clock may outrun it, but sim time must never outrun the factor.
     assert 0.0 < factor < 6.0, factor
     odom = probe.messages('odom')[-1]
-    assert odom.header.frame_id == 'map' and odom.child_frame_id == 'base_link'
+    assert odom.header.frame_id == 'odom' and odom.child_frame_id == 'base_link'
+    truth = probe.messages('truth')[-1]
+    assert truth.header.frame_id == 'map' and truth.child_frame_id == 'base_link'
     scan = probe.messages('scan')[-1]
     assert scan.header.frame_id == 'base_link'
     assert len(scan.ranges) == probe.sim.scenario.scan.beams
+
+
+@pytest.mark.parametrize('probe', [{'odom_scale_error': 0.1, 'odom_yaw_drift': 0.0,
+                                    'localization_noise': 0.0,
+                                    'localization_yaw_noise': 0.0}], indirect=True)
+def test_odometry_drifts_from_the_truth_and_the_localization_does_not(probe):
+    assert probe.wait_until(lambda: probe.messages('odom') and probe.messages('amcl'))
+    first = probe.messages('odom')[-1].pose.pose.position
+    assert (first.x, first.y) == (0.0, 0.0), 'odometry starts at the origin (REP-105)'
+    start = probe.messages('truth')[-1].pose.pose.position
+    forward = Twist()
+    forward.linear.x = 0.5
+    for _ in range(60):
+        probe.cmd_pub.publish(forward)
+        time.sleep(0.025)
+    assert probe.wait_until(lambda: probe.messages('truth')[-1].twist.twist.linear.x == 0.0)
+    truth = probe.messages('truth')[-1].pose.pose.position
+    odom = probe.messages('odom')[-1].pose.pose.position
+    travelled = math.hypot(truth.x - start.x, truth.y - start.y)
+    assert travelled > 0.3
+    assert math.hypot(odom.x, odom.y) == pytest.approx(1.1 * travelled, rel=1e-3)
+    assert probe.wait_until(lambda: abs(
+        probe.messages('amcl')[-1].pose.pose.position.x - truth.x) < 1e-6)
+    assert probe.messages('amcl')[-1].header.frame_id == 'map'
 
 
 def test_late_subscriber_gets_the_known_map_without_unknown_obstacles(probe, context):
@@ -163,7 +193,7 @@ def test_commands_move_the_robot_and_a_nan_command_stops_it(probe):
             if stamped and math.isfinite(v) else (TwistStamped(twist=twist) if stamped else twist)
 
     def speed():
-        return probe.messages('odom')[-1].twist.twist.linear.x
+        return probe.messages('truth')[-1].twist.twist.linear.x
 
     for _ in range(40):
         pub.publish(command(0.4))
@@ -201,12 +231,12 @@ def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_commands_still_
     assert 2 <= len(lines) <= fuzz.allowed_problem_lines(2, elapsed), lines
     assert 'Traceback' not in err
     # Refused commands stopped the robot; a good one drives it.
-    assert probe.wait_until(lambda: probe.messages('odom')[-1].twist.twist.linear.x == 0.0)
+    assert probe.wait_until(lambda: probe.messages('truth')[-1].twist.twist.linear.x == 0.0)
     good = Twist()
     good.linear.x, good.angular.z = 0.3, 0.5
 
     def turning():
-        return probe.messages('odom')[-1].twist.twist.angular.z == 0.5
+        return probe.messages('truth')[-1].twist.twist.angular.z == 0.5
 
     deadline = time.monotonic() + WAIT_S
     while time.monotonic() < deadline and not turning():
@@ -221,9 +251,9 @@ def test_robot_stops_when_commands_stop(probe):
     for _ in range(30):
         probe.cmd_pub.publish(moving)
         time.sleep(0.025)
-    assert probe.messages('odom')[-1].twist.twist.linear.x > 0.0
+    assert probe.messages('truth')[-1].twist.twist.linear.x > 0.0
     time.sleep(2.0)  # > cmd_timeout (0.5 s) + braking at max_accel
-    assert probe.messages('odom')[-1].twist.twist.linear.x == 0.0
+    assert probe.messages('truth')[-1].twist.twist.linear.x == 0.0
 
 
 def test_obstacle_markers_are_id_stable_cylinders_of_the_moving_obstacles(probe):

@@ -34,8 +34,9 @@ The run is written out, each file beside the picture unless told otherwise:
   animated GIF (``output/demo.gif``), drawn like ``fusion-planner sim
   --plot/--gif``;
 - an MCAP recording (``output/demo.mcap``) of ``map``, ``plan``,
-  ``plan_markers``, ``local_plan``, ``odom``, ``scan``, ``obstacles``,
-  ``cmd_vel``, ``goal_pose`` and ``diagnostics`` in ROS 2 message encoding
+  ``plan_markers``, ``local_plan``, ``odom``, ``ground_truth``, ``amcl_pose``,
+  ``scan``, ``obstacles``, ``cmd_vel``, ``goal_pose``, ``goal_outcome`` and
+  ``/diagnostics`` in ROS 2 message encoding
   (CDR, ``ros2msg`` schemas), stamped with the simulated time, for Foxglove
   or ``ros2 bag play`` (see :mod:`fusion_planner.cli.recording`).
 
@@ -313,7 +314,8 @@ class RunRecorder:
                     self.started_wall = self.clock_wall
             self.sim_time = t
 
-    def on_odom(self, msg):
+    def on_ground_truth(self, msg):
+        """The true pose (map frame): what the plots, metrics and arrival judge."""
         if self.past_limit(_seconds(msg.header.stamp)):
             return
         p = msg.pose.pose
@@ -357,7 +359,7 @@ class RunRecorder:
                     self.local_status = values
                     stuck = int(values.get('stuck_events', 0))
                     if stuck > self.stuck_events and self.poses:
-                        # reported as it happens: the robot is where odometry last put it
+                        # reported as it happens: the robot is where it was last seen
                         self.escape_points.append(self.poses[-1][:2])
                     self.stuck_events = max(self.stuck_events, stuck)
                     if values.get('status') == 'arrived' and self.arrived_at is None \
@@ -383,7 +385,7 @@ class RunRecorder:
         return sim_end / max(end - self.started_wall, 1e-9)
 
     def distance_to_goal(self):
-        """Distance [m] from the last odometry pose to the goal (inf before any)."""
+        """Distance [m] from the last true pose to the goal (inf before any)."""
         if not self.poses:
             return math.inf
         x, y, _ = self.poses[-1]
@@ -447,15 +449,14 @@ def attach_recorder(node, recorder):
     """Subscribe a (monitor) node's topics into a :class:`RunRecorder`."""
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry, Path
-    from rclpy.qos import qos_profile_sensor_data
     from rosgraph_msgs.msg import Clock
     from visualization_msgs.msg import MarkerArray
 
     from fusion_planner.ros.diagnostics import DIAGNOSTICS_TOPIC
-    from fusion_planner.ros.qos import LATCHED_QOS
+    from fusion_planner.ros.qos import LATCHED_QOS, RELIABLE_QOS
 
     node.create_subscription(Clock, 'clock', recorder.on_clock, 10)
-    node.create_subscription(Odometry, 'odom', recorder.on_odom, qos_profile_sensor_data)
+    node.create_subscription(Odometry, 'ground_truth', recorder.on_ground_truth, RELIABLE_QOS)
     node.create_subscription(MarkerArray, 'obstacles', recorder.on_obstacles, 10)
     node.create_subscription(Path, 'plan', recorder.on_plan, LATCHED_QOS)
     namespace = node.get_namespace()
@@ -834,12 +835,13 @@ def recorded_topics():
     """The topics the demo records: ``(name, message class, subscription QoS)``.
 
     Each QoS is compatible with the publisher's: transient local for the
-    latched ``map`` and ``plan``, best effort for the sensor streams
-    ``odom`` and ``scan``, reliable otherwise; deep (:data:`RECORD_DEPTH`).
+    latched ``map``, ``plan`` and ``amcl_pose``, best effort for the laser
+    ``scan``, reliable otherwise; deep (:data:`RECORD_DEPTH`). ``odom`` is in
+    the drifting odom frame, ``ground_truth`` and ``amcl_pose`` in map.
     The demo's local planner publishes ``Twist`` on ``cmd_vel``.
     """
     from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import PoseStamped, Twist
+    from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
     from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import LaserScan
@@ -852,7 +854,8 @@ def recorded_topics():
     reliable = QoSProfile(depth=RECORD_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
     return (('map', OccupancyGrid, latched), ('plan', Path, latched),
             ('plan_markers', MarkerArray, reliable), ('local_plan', Path, reliable),
-            ('odom', Odometry, sensor), ('scan', LaserScan, sensor),
+            ('odom', Odometry, reliable), ('ground_truth', Odometry, reliable),
+            ('amcl_pose', PoseWithCovarianceStamped, latched), ('scan', LaserScan, sensor),
             ('obstacles', MarkerArray, reliable), ('tracks', MarkerArray, reliable),
             ('cmd_vel', Twist, reliable),
             ('goal_pose', PoseStamped, reliable), ('goal_outcome', String, reliable),

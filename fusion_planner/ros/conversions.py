@@ -229,6 +229,14 @@ def quaternion_of_yaw(yaw):
     return Quaternion(x=0.0, y=0.0, z=math.sin(half), w=math.cos(half))
 
 
+def xy_yaw_to_pose(pose):
+    """A ``geometry_msgs/Pose`` of ``(x, y, yaw)`` [m, m, rad] (z = 0)."""
+    msg = Pose()
+    msg.position.x, msg.position.y = float(pose[0]), float(pose[1])
+    msg.orientation = quaternion_of_yaw(pose[2])
+    return msg
+
+
 def pose_to_xy_yaw(pose, what='pose'):
     """Planar pose of a ``geometry_msgs/Pose``.
 
@@ -282,10 +290,13 @@ def pose_stamped_to_xy_yaw(msg, frame_id, what='pose'):
 def pose_with_covariance_to_xy_yaw(msg, frame_id, what='pose'):
     """Planar pose of a ``geometry_msgs/PoseWithCovarianceStamped`` (e.g. AMCL).
 
-    The covariance is not used. Parameters, returns and errors as
-    :func:`pose_stamped_to_xy_yaw`.
+    Parameters, returns and errors as :func:`pose_stamped_to_xy_yaw`; a
+    covariance with a NaN or infinite entry (a localizer that lost track) is
+    refused too (InvalidInput).
     """
     check_frame(msg.header.frame_id, frame_id, what)
+    if not all(math.isfinite(value) for value in msg.pose.covariance):
+        raise InvalidInput(f'{what} covariance has a NaN or infinite entry')
     return pose_to_xy_yaw(msg.pose.pose, what)
 
 

@@ -213,13 +213,19 @@ def pose_stampeds(draw, frame=MAP_FRAME, bad_only=False):
     return Fuzzed(msg, defects)
 
 
+#: Defects of a PoseWithCovarianceStamped: those of its pose, a NaN or infinite covariance.
+POSE_WITH_COVARIANCE_DEFECTS = POSE_DEFECTS + ('covariance',)
+_FINITE = st.floats(allow_nan=False, allow_infinity=False)
+
+
 @st.composite
 def poses_with_covariance(draw, frame=MAP_FRAME, bad_only=False):
-    """``geometry_msgs/PoseWithCovarianceStamped`` (AMCL); the covariance is not read."""
-    defects = draw(_defect_sets(POSE_DEFECTS, bad_only))
+    """``geometry_msgs/PoseWithCovarianceStamped`` (AMCL); a non-finite covariance is a defect."""
+    defects = draw(_defect_sets(POSE_WITH_COVARIANCE_DEFECTS, bad_only))
     msg = PoseWithCovarianceStamped()
     _stamped_pose(draw, msg, msg.pose.pose, frame, defects)
-    msg.pose.covariance[draw(st.integers(0, 35))] = draw(_ANY)
+    msg.pose.covariance[draw(st.integers(0, 35))] = draw(
+        _NON_FINITE if 'covariance' in defects else _FINITE)
     return Fuzzed(msg, defects)
 
 
@@ -906,6 +912,7 @@ class LocalPlannerTarget(FuzzTarget):
         super().__init__(LocalPlannerNode(context=context, parameter_overrides=[
             Parameter('use_sim_time', value=True), Parameter('diagnostics_period', value=0.0),
             Parameter('max_map_cells', value=MAX_MAP_CELLS),
+            Parameter('odom_frame_id', value=MAP_FRAME),  # odometry in the map frame
             Parameter('plan_timeout', value=0.0)]))  # no plan publisher here: never time out
         node = self.node
         self.dt = 1.0 / node.get_parameter('control_rate').value

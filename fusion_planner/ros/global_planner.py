@@ -8,19 +8,25 @@ Topics (relative names, so a namespace or a remap applies):
   whose inflation and search grid are reused by every plan on it.
 - ``goal_pose`` (geometry_msgs/PoseStamped) in: plans from the latest robot
   pose and publishes on ``plan``.
-- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``) or, with
-  ``pose_topic_type: pose_with_covariance``, ``amcl_pose``
-  (geometry_msgs/PoseWithCovarianceStamped) in: the start pose. ``odom`` is
+- ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, frame
+  ``frame_id``; default ``pose_topic_type: pose_with_covariance``) in: the
+  start pose, from the localizer; AMCL's latched pose (reliable, transient
+  local) sent before the node joined is taken too. With it, ``odom``
+  (nav_msgs/Odometry in ``odom_frame_id``) places scans between the
+  localization poses through the map -> odom correction
+  (:class:`~fusion_planner.ros.frames.Localization`).
+- ``odom`` with ``pose_topic_type: odometry`` in: odometry that is already
+  in ``frame_id`` (a localizer's fused output) as the start pose. ``odom`` is
   subscribed best-effort, which matches reliable and best-effort publishers
-  alike; ``amcl_pose`` also takes AMCL's latched pose (reliable,
-  transient local) sent before the node joined.
+  alike.
 - ``plan`` (nav_msgs/Path, reliable, transient_local) out: the smoothed
   path; an *empty* path when planning for the current goal failed, so a
   follower stops instead of driving an old plan.
 - ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
   expanded cells when ``publish_expanded`` is set.
-- ``scan`` (sensor_msgs/LaserScan, best effort, frame =
-  ``robot_frame_id``: the laser at the robot centre) in, with
+- ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
+  mounted at ``laser_x``, ``laser_y``, ``laser_yaw``; with ``use_tf`` its
+  frame and the robot pose come from TF) in, with
   ``mark_obstacles``: obstacles the map does not show are learnt from the
   returns (marked once seen for ``obstacle_persistence``, cleared when a
   beam passes through them again; :class:`~fusion_planner.core.global_planning.obstacle_layer.ObstacleLayer`),
@@ -85,6 +91,8 @@ from fusion_planner.ros.goal_outcome import (
     CANCEL_SERVICE, CONTROLLER_OUTCOME_TOPIC, GOAL_OUTCOME_TOPIC, controller_outcome_from_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
+from fusion_planner.ros import frames
+from fusion_planner.ros.frames import Localization
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -107,6 +115,8 @@ POSE_HISTORY = 50
 POSE_EXTRAPOLATION_S = 0.5
 #: A node-clock step backwards larger than this [s] is a clock reset.
 CLOCK_JUMP_TOLERANCE_S = 1e-3
+#: Period of the robot pose lookup in TF with ``use_tf`` [s].
+TF_POSE_PERIOD_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -114,7 +124,8 @@ class GlobalPlannerParams:
     """Tunables of the global planner node (see :data:`PARAMETER_SPECS`)."""
 
     frame_id: str = 'map'
-    pose_topic_type: str = 'odometry'
+    pose_topic_type: str = 'pose_with_covariance'
+    odom_frame_id: str = 'odom'
     algorithm: str = 'improved'
     neighbourhood: int = 8
     alpha: float = 1.0
@@ -130,7 +141,12 @@ class GlobalPlannerParams:
     goal_tolerance: float = 0.5
     publish_expanded: bool = False
     mark_obstacles: bool = True
+    laser_frame_id: str = 'base_link'
+    use_tf: bool = False
     robot_frame_id: str = 'base_link'
+    laser_x: float = 0.0
+    laser_y: float = 0.0
+    laser_yaw: float = 0.0
     obstacle_persistence: float = 1.0
     obstacle_mark_range: float = 3.0
     obstacle_clear_range: float = 4.0
@@ -165,10 +181,13 @@ class GlobalPlannerParams:
 #: Every parameter of the node; config/params.yaml lists the same names.
 PARAMETER_SPECS = (
     ParameterSpec('frame_id', 'map', 'frame of the map, poses and plan', read_only=True),
-    ParameterSpec('pose_topic_type', 'odometry',
-                  "source of the start pose: 'odometry' (nav_msgs/Odometry on odom) or "
-                  "'pose_with_covariance' (PoseWithCovarianceStamped on amcl_pose)",
-                  read_only=True, choices=tuple(POSE_TOPICS)),
+    ParameterSpec('pose_topic_type', 'pose_with_covariance',
+                  "source of the start pose: 'pose_with_covariance' (a localizer's "
+                  "PoseWithCovarianceStamped on amcl_pose) or 'odometry' (nav_msgs/Odometry on "
+                  'odom, already in frame_id)', read_only=True, choices=tuple(POSE_TOPICS)),
+    ParameterSpec('odom_frame_id', 'odom',
+                  'frame of the odometry that places scans between amcl_pose messages',
+                  read_only=True),
     ParameterSpec('algorithm', 'improved',
                   "search algorithm: 'dijkstra', 'astar' (with the 8-neighbourhood: jump points, "
                   "optimal) or 'improved' (the paper's improved A*)",
@@ -200,8 +219,19 @@ PARAMETER_SPECS = (
     ParameterSpec('mark_obstacles', True,
                   'learn obstacles the map does not show from scan and plan around them',
                   read_only=True),
-    ParameterSpec('robot_frame_id', 'base_link', 'frame of the scan (the laser at the robot centre)',
+    ParameterSpec('laser_frame_id', 'base_link', 'frame of the scan', read_only=True),
+    ParameterSpec('use_tf', False,
+                  'take the robot pose (map -> robot_frame_id) and the laser pose from TF (needs '
+                  'tf2_ros, a full ROS install) instead of amcl_pose or odom and the laser_* '
+                  'parameters', read_only=True),
+    ParameterSpec('robot_frame_id', 'base_link', 'robot frame, looked up in TF with use_tf',
                   read_only=True),
+    ParameterSpec('laser_x', 0.0, 'laser position ahead of the robot centre, robot frame [m]',
+                  float_range(-10.0, 10.0), read_only=True),
+    ParameterSpec('laser_y', 0.0, 'laser position left of the robot centre, robot frame [m]',
+                  float_range(-10.0, 10.0), read_only=True),
+    ParameterSpec('laser_yaw', 0.0, 'laser heading in the robot frame [rad]',
+                  float_range(-math.pi, math.pi), read_only=True),
     ParameterSpec('obstacle_persistence', 1.0,
                   'a scan return must stay in its cell this long to become an obstacle [s]',
                   float_range(0.0, 60.0), read_only=True),
@@ -295,8 +325,10 @@ class GlobalPlannerNode(ManagedNode):
         If the start-up parameters are out of range or inconsistent.
     """
 
-    def __init__(self, node_name=NODE_NAME, **kwargs):
+    def __init__(self, node_name=NODE_NAME, tf_buffer=None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self._tf_buffer = tf_buffer  # with use_tf: this buffer instead of a tf2_ros one
+        self._tf = None
         self._params = ParameterHandler(self, GlobalPlannerParams, PARAMETER_SPECS)
         params = self._params.current
         self._frame_id = params.frame_id
@@ -321,6 +353,7 @@ class GlobalPlannerNode(ManagedNode):
         self._layer = None  # ObstacleLayer of the scans on the current map
         self._marked_planner = None  # planner on the map plus confirmed scan obstacles
         self._poses = collections.deque(maxlen=POSE_HISTORY)  # (stamp, pose, velocity)
+        self._localization = Localization(POSE_EXTRAPOLATION_S)
         self._last_now = -math.inf  # latest node-clock time seen [s]
         self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
@@ -332,13 +365,20 @@ class GlobalPlannerNode(ManagedNode):
                                           ReliabilityPolicy.RELIABLE)
         self.create_subscription(PoseStamped, 'goal_pose', guard('goal_pose', self._on_goal),
                                  RELIABLE_QOS)
-        if params.pose_topic_type == 'odometry':
+        if params.use_tf:
+            self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
+                else frames.make_tf_source(self)
+            self.create_timer(TF_POSE_PERIOD_S, guard('tf', self._on_tf_timer))
+        elif params.pose_topic_type == 'odometry':
             self.create_subscription(Odometry, POSE_TOPICS['odometry'],
                                      guard('odom', self._on_odometry), ANY_PUBLISHER_QOS)
         else:
             self._pose_sub = LatchedOrVolatile(
                 self, PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
                 guard('amcl_pose', self._on_pose_with_covariance), ReliabilityPolicy.BEST_EFFORT)
+            if params.mark_obstacles:
+                self.create_subscription(Odometry, 'odom', guard('odom', self._on_wheel_odometry),
+                                         ANY_PUBLISHER_QOS)
         if params.mark_obstacles:
             self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
                                      ANY_PUBLISHER_QOS)
@@ -352,6 +392,10 @@ class GlobalPlannerNode(ManagedNode):
         self.create_service(Trigger, CANCEL_SERVICE,
                             guard('cancel_goal', self._on_cancel, on_error=self._cancel_refused))
         self._diagnostics.update(WARN, 'waiting for a map', last_outcome='no_map')
+
+    def cleanup(self):
+        """The TF listener goes with the other entities."""
+        self._tf = None
 
     def deactivate(self):
         """The current goal ends ``cancelled`` while the publishers still publish."""
@@ -439,7 +483,14 @@ class GlobalPlannerNode(ManagedNode):
 
     def _on_pose_with_covariance(self, msg):
         pose = conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose')
+        self._localization.add_localization(conv.stamp_to_seconds(msg.header.stamp), pose)
         self._set_start(pose, msg.header.stamp, (0.0, 0.0))
+
+    def _on_wheel_odometry(self, msg):
+        """Odometry in the odom frame: places scans between localization poses."""
+        pose = conv.odometry_to_xy_yaw(msg, self._params.current.odom_frame_id, 'odom')
+        self._localization.add_odometry(conv.stamp_to_seconds(msg.header.stamp), pose,
+                                        conv.odometry_to_velocity(msg, 'odom'))
 
     def _set_start(self, pose, stamp, velocity):
         self._check_clock()
@@ -456,11 +507,20 @@ class GlobalPlannerNode(ManagedNode):
         self._check_clock()
         if self._layer is None or not self._poses:
             return  # no map to mark on, or no pose to place the beams with
+        params = self._params.current
         stamp = conv.stamp_to_seconds(msg.header.stamp)
-        pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
-            else self._poses[-1][1]
-        ends, hit = conv.scan_to_rays(msg, tuple(pose), self._params.current.robot_frame_id,
-                                      'scan')
+        if self._tf is not None:
+            frame = msg.header.frame_id
+            laser = self._tf.scan_pose(params.frame_id, frame)
+            pose = self._poses[-1][1]
+        else:
+            pose = self._localization.map_pose_at(stamp) if stamp > 0 else None
+            if pose is None:
+                pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
+                    else self._poses[-1][1]
+            frame = params.laser_frame_id
+            laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
+        ends, hit = conv.scan_to_rays(msg, tuple(laser), frame, 'scan')
         now = self._now_s()
         if now - self._layer_updated < self._params.current.obstacle_update_period:
             return  # persistence is measured in seconds: every scan is not needed
@@ -513,6 +573,7 @@ class GlobalPlannerNode(ManagedNode):
                 'waiting for a fresh start pose')
             self._start = None
             self._poses.clear()
+            self._localization.clear()
             self._layer_updated = -math.inf
             if self._layer is not None:
                 self._layer.reset()
@@ -521,6 +582,13 @@ class GlobalPlannerNode(ManagedNode):
         self._last_now = now
 
     # -- planning ---------------------------------------------------------------
+
+    def _on_tf_timer(self):
+        """With ``use_tf``: the robot pose from TF; a goal waiting for it is planned."""
+        params = self._params.current
+        pose = self._tf.planar(params.frame_id, params.robot_frame_id)
+        if pose is not None:
+            self._set_start(pose, self.get_clock().now().to_msg(), (0.0, 0.0))
 
     def _replan(self, trigger):
         """Plan from the robot to the current goal; publish the plan or an empty one."""

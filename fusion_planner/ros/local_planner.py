@@ -14,34 +14,47 @@ Topics (relative names, so a namespace or a remap applies):
   (:func:`key_nodes_of`). An *empty* path means "no
   plan": the robot stops. The same plan again (a latched republish) keeps
   the controller's state.
-- ``odom`` (nav_msgs/Odometry, header frame = ``frame_id``, best effort:
-  reliable and best-effort publishers match) in: pose and measured velocity. The pose is moved ahead along the measured
-  velocity from its stamp to the control step
-  (:func:`~fusion_planner.ros.timed_pose.pose_at`), which
-  compensates the delay of a message that arrived a step late.
-- ``scan`` (sensor_msgs/LaserScan, best effort, frame =
-  ``robot_frame_id``: the laser sits at the robot centre) in: obstacle
-  points, placed in the map with the odometry pose of the scan's stamp, and
-  the moving obstacles: a scan tracker
-  (:class:`~fusion_planner.ros.scan_tracks.ScanTracks`) follows the returns
-  the map does not explain and reports the ones that move. A valid scan the
-  tracker cannot use (stamped more than ``scan_timeout`` before the latest
-  odometry, not newer than the last tracked one, without beams) is not
-  tracked; why is logged (rate-limited) and kept in the diagnostics value
-  ``scan_tracking``.
+- ``odom`` (nav_msgs/Odometry, header frame = ``odom_frame_id``, best
+  effort: reliable and best-effort publishers match) in: pose and measured
+  velocity. The robot is controlled in this frame (REP-105: smooth, but
+  drifting). The pose is moved ahead along the measured velocity from its
+  stamp to the control step (:func:`~fusion_planner.ros.timed_pose.pose_at`),
+  which compensates the delay of a message that arrived a step late.
+- ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, frame
+  ``frame_id``; latched or volatile publishers) in, unless the odometry is
+  already in ``frame_id``: the map -> odom correction, from the pose and
+  the odometry at the pose's stamp (:class:`~fusion_planner.ros.frames.Localization`).
+  Each plan (map frame) is brought into the odom frame with the correction
+  of its arrival; later corrections (the odometry's drift since) are applied
+  to the robot pose, scans and obstacles the controller sees, so the plan
+  and the controller's state stay put. Until the first pose the robot
+  stands still (``no_localization``).
+- ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
+  mounted at ``laser_x``, ``laser_y``, ``laser_yaw`` on the robot) in:
+  obstacle points, placed in the odom frame with the odometry pose of the
+  scan's stamp (:meth:`LocalPlannerNode._on_scan`, the one place where
+  obstacles come in), and the moving obstacles: a scan tracker
+  (:class:`~fusion_planner.ros.scan_tracks.ScanTracks`, map frame, laser
+  placed with the map -> odom correction) follows the returns the map does
+  not explain and reports the ones that move. A valid scan the tracker
+  cannot use (no localization yet, stamped more than ``scan_timeout``
+  before the latest odometry, not newer than the last tracked one, without
+  beams) is not tracked; why is logged (rate-limited) and kept in the
+  diagnostics value ``scan_tracking``.
 - ``map`` (nav_msgs/OccupancyGrid, latched or volatile publishers) in: the
   known map the fusion controller replans on, with the obstacles it has
   scanned, when it is stuck (:class:`~fusion_planner.core.local_planning.replanning.GridReplanner`,
   as in the simulation); without a map it recovers without replanning. The
   scan tracker tells people from walls with it too: no scan tracks until it
   arrives.
-- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders) in,
-  optional: moving obstacles tracked elsewhere; velocities are estimated
-  from successive positions
+- ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders,
+  ``frame_id``) in, optional: moving obstacles tracked elsewhere, brought
+  into the odom frame; velocities are estimated from successive positions
   (:class:`~fusion_planner.ros.conversions.ObstacleTracker`). Fused with the
   scan tracks: an obstacle from here replaces a scan track it overlaps.
-- ``tracks`` (visualization_msgs/MarkerArray) out with each tracked scan:
-  the scan tracker's moving tracks, a cylinder and a velocity arrow each.
+- ``tracks`` (visualization_msgs/MarkerArray, ``frame_id``) out with each
+  tracked scan: the scan tracker's moving tracks, a cylinder and a velocity
+  arrow each.
 - ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
   ``enable_stamped_cmd_vel``, reliable) out, at ``control_rate`` on the node
   clock while a plan is followed. A TwistStamped carries the stamp of the
@@ -50,7 +63,8 @@ Topics (relative names, so a namespace or a remap applies):
   arrived, failed, no path) the node publishes one zero command and then
   nothing, so it does not fight a teleop or keep a twist_mux input alive;
   ``publish_zero_when_idle`` keeps a zero command at ``control_rate``.
-- ``local_plan`` (nav_msgs/Path) out: the controller's short field rollout.
+- ``local_plan`` (nav_msgs/Path, ``frame_id``) out: the controller's
+  short field rollout.
 - ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) out, once per
   plan whose run ended: ``reached``, ``no_path`` (replanning proved the goal
   unreachable) or ``controller_failed``, with the plan's stamp
@@ -72,7 +86,7 @@ rate-limited log line and a diagnostics entry; the node never dies on a
 message.
 """
 
-import collections
+import functools
 import math
 import threading
 import time
@@ -81,7 +95,7 @@ from dataclasses import fields, make_dataclass
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
-from geometry_msgs.msg import Twist, TwistStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.qos import ReliabilityPolicy
 from sensor_msgs.msg import LaserScan
@@ -101,6 +115,8 @@ from fusion_planner.ros.goal_outcome import (
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.scan_tracks import ScanTracks, fuse, tracks_to_markers
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
+from fusion_planner.ros import frames
+from fusion_planner.ros.frames import Localization
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -114,15 +130,25 @@ CLOCK_JUMP_TOLERANCE_S = 1e-3
 DEFAULT_KEY_NODE_MIN_TURN_RAD = 0.01
 #: Sine of the angle under which two segments count as parallel [1].
 PARALLEL_SINE = 1e-6
-#: Odometry messages remembered to place scans at their own time [1].
-ODOM_HISTORY = 64
 #: Statuses after which the command is exactly zero.
 STOPPED_STATUSES = ('arrived', 'failed', 'no_path')
 
 #: The node's own parameters: ``(name, default, description, range, read_only, choices)``.
 NODE_PARAMETERS = (
-    ('frame_id', 'map', 'frame of the plan, odometry and obstacles', None, True, ()),
-    ('robot_frame_id', 'base_link', 'robot frame: frame of the scan and of a TwistStamped command',
+    ('frame_id', 'map', 'map frame: of the plan, map, amcl_pose and obstacles', None, True, ()),
+    ('odom_frame_id', 'odom', 'frame of the odometry, in which the robot is controlled; equal '
+     'to frame_id: odometry already in the map frame, no amcl_pose needed', None, True, ()),
+    ('laser_frame_id', 'base_link', 'frame of the scan', None, True, ()),
+    ('use_tf', False, 'take map -> odom and the laser pose from TF (needs tf2_ros, a full ROS '
+     'install) instead of amcl_pose and the laser_* parameters', None, True, ()),
+    ('laser_x', 0.0, 'laser position ahead of the robot centre, robot frame [m]',
+     float_range(-10.0, 10.0), True, ()),
+    ('laser_y', 0.0, 'laser position left of the robot centre, robot frame [m]',
+     float_range(-10.0, 10.0), True, ()),
+    ('laser_yaw', 0.0, 'laser heading in the robot frame [rad]',
+     float_range(-math.pi, math.pi), True, ()),
+    ('robot_frame_id', 'base_link', 'robot frame: child of the odometry, frame of a TwistStamped '
+     'command',
      None, True, ()),
     ('controller', 'fusion',
      "local controller: 'fusion' (A* key nodes + improved APF, the paper's method), "
@@ -385,8 +411,10 @@ class LocalPlannerNode(ManagedNode):
     thread.
     """
 
-    def __init__(self, node_name=NODE_NAME, **kwargs):
+    def __init__(self, node_name=NODE_NAME, tf_buffer=None, **kwargs):
         super().__init__(node_name, **kwargs)
+        self._tf_buffer = tf_buffer  # with use_tf: this buffer instead of a tf2_ros one
+        self._tf = None
         self._lock = threading.RLock()
         self._params = ParameterHandler(self, LocalPlannerParams, PARAMETER_SPECS,
                                         on_change=self._on_parameters_changed)
@@ -412,12 +440,16 @@ class LocalPlannerNode(ManagedNode):
         self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
         self._scan_tracks = ScanTracks(params.frame_id)
         self._tracking_note = ''   # why the last scan was not tracked ('' when it was)
-        self._plan = None          # (N, 2) path being followed [m]
+        self._plan_map = None      # (N, 2) the plan as received, map frame [m]
+        self._plan = None          # (N, 2) that plan in the odom frame, being followed [m]
+        self._plan_correction = None  # the map -> odom correction it was brought over with
+        self._localization = Localization(params.odom_timeout,
+                                          same_frame=params.odom_frame_id == params.frame_id)
         self._plan_stamp_ns = 0    # header stamp of that plan [ns]
         self._outcome_sent = False  # the run of that plan ended and was reported
         self._odom = None          # latest Odometry as (stamp [s], pose (3,), velocity (2,))
         self._odom_received = None  # node-clock time it arrived [s]
-        self._odom_history = collections.deque(maxlen=ODOM_HISTORY)  # (stamp, pose, velocity)
+        self._odom_stamp = None    # its header stamp
         self._scan = None          # (points (M, 2), receive time [s])
         self._last_tick = None     # node-clock time of the last control step [s]
         self._plan_orphaned_since = None  # node-clock time the plan's publisher vanished [s]
@@ -433,6 +465,9 @@ class LocalPlannerNode(ManagedNode):
         with self._lock:
             self._reset_state()
         params = self._params.current
+        if params.use_tf:
+            self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
+                else frames.make_tf_source(self)
         guard = self._diagnostics.guard
         twist_type = TwistStamped if self._stamped else Twist
         self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
@@ -448,6 +483,10 @@ class LocalPlannerNode(ManagedNode):
                                  RELIABLE_QOS)
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
+        if not self._localization.same_frame and self._tf is None:
+            self._pose_sub = LatchedOrVolatile(
+                self, PoseWithCovarianceStamped, 'amcl_pose',
+                guard('amcl_pose', self._on_localization), ReliabilityPolicy.BEST_EFFORT)
         self._outcome_pub = self.create_lifecycle_publisher(
             DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC, RELIABLE_QOS)
         self._timer = self.create_timer(1.0 / params.control_rate,
@@ -463,8 +502,10 @@ class LocalPlannerNode(ManagedNode):
         self._update(WARN, 'inactive', status='inactive')
 
     def cleanup(self):
-        """The timer went with the other entities."""
+        """The timer went with the other entities; the TF listener goes too."""
         self._timer = None
+        self._tf = None
+
     # -- inputs ---------------------------------------------------------------
 
     def _on_plan(self, msg):
@@ -472,16 +513,16 @@ class LocalPlannerNode(ManagedNode):
         path = conv.plan_from_msg(msg, self._frame_id, 'plan')
         with self._lock:
             if path is None:
-                if self._plan is not None:
+                if self._plan_map is not None:
                     self.get_logger().info('empty plan received: stopping')
                 self._drop_plan()
                 return
-            if self._plan is not None and self._plan.shape == path.shape \
-                    and np.array_equal(self._plan, path):
+            if self._plan_map is not None and self._plan_map.shape == path.shape \
+                    and np.array_equal(self._plan_map, path):
                 return  # the same plan again (a latched republish): keep the state
-            min_turn = self._params.current.key_node_min_turn
-            self._controller.set_path(path, key_nodes_of(path, min_turn))
-            self._plan = path
+            self._plan_map = path
+            self._plan = None
+            self._bring_plan_over()
             self._plan_stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
             self._outcome_sent = False
             self._plan_orphaned_since = None
@@ -490,7 +531,7 @@ class LocalPlannerNode(ManagedNode):
                 f'new plan of {len(path)} points to ({path[-1, 0]:.2f}, {path[-1, 1]:.2f})')
 
     def _on_map(self, msg):
-        """Replan and track scans on this map from now on (unknown cells count as obstacles)."""
+        """Replan on this map from now on (unknown cells count as obstacles)."""
         params = self._params.current
         grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
                                                max_cells=params.max_map_cells)
@@ -500,44 +541,105 @@ class LocalPlannerNode(ManagedNode):
             self._scan_tracks.set_map(grid)
 
     def _replan(self, start, goal, obstacle_points):
-        """The controller's replanner: the map plus the scanned obstacles (see GridReplanner)."""
-        if self._replanner is None:
-            raise NoValidPathCouldBeFound('no map received: cannot replan')
-        return self._replanner(start, goal, obstacle_points)
+        """The controller's replanner: the map plus the scanned obstacles (see GridReplanner).
+
+        The controller works in the plan's frame (odom as corrected when the
+        plan arrived), the map is in the map frame: the request and the new
+        plan go through that correction.
+        """
+        correction = self._plan_correction
+        if self._replanner is None or correction is None:
+            raise NoValidPathCouldBeFound('no map or no localization received: cannot replan')
+        to_map = functools.partial(frames.transform_points, correction)
+        to_odom = functools.partial(frames.transform_points, frames.inverse(correction))
+        path, key_nodes = self._replanner(to_map(start)[0], to_map(goal)[0],
+                                          to_map(obstacle_points))
+        return to_odom(path), to_odom(key_nodes)
 
     def _on_odometry(self, msg):
-        pose = conv.odometry_to_xy_yaw(msg, self._frame_id, 'odometry')
+        params = self._params.current
+        pose = conv.odometry_to_xy_yaw(msg, params.odom_frame_id, 'odometry')
         velocity = conv.odometry_to_velocity(msg, 'odometry')
         stamp = conv.stamp_to_seconds(msg.header.stamp)
         with self._lock:
             self._odom = (stamp, np.array(pose), np.array(velocity))
+            self._odom_stamp = msg.header.stamp  # exact, for a TwistStamped answering it
             self._odom_received = self._now_s()
-            self._odom_history.append(self._odom)
+            self._localization.add_odometry(*self._odom)
+
+    def _on_localization(self, msg):
+        """A map-frame pose: the map -> odom correction at its stamp."""
+        pose = conv.pose_with_covariance_to_xy_yaw(msg, self._frame_id, 'amcl_pose')
+        with self._lock:
+            if self._localization.add_localization(conv.stamp_to_seconds(msg.header.stamp), pose):
+                self._bring_plan_over()
+
+    def _bring_plan_over(self):
+        """Bring a new map plan into the odom frame with the current correction.
+
+        The controller keeps this frame (the odom frame as corrected when the
+        plan arrived) for the whole plan: a later correction moves the robot
+        pose, scans and obstacles it is given (:meth:`_to_plan_frame`), never
+        the plan, so the controller's progress and escape state carry on.
+        """
+        correction = self._localization.map_from_odom
+        if self._plan_map is None or self._plan is not None or correction is None:
+            return
+        self._plan_correction = correction
+        self._plan = frames.transform_points(frames.inverse(correction), self._plan_map)
+        self._controller.set_path(
+            self._plan, key_nodes_of(self._plan, self._params.current.key_node_min_turn))
+
+    def _correction_from_tf(self, params):
+        """With ``use_tf``: the latest map -> odom from TF instead of amcl_pose."""
+        correction = self._tf.planar(self._frame_id, params.odom_frame_id)
+        if correction is not None:
+            self._localization.map_from_odom = correction
+            self._bring_plan_over()
+
+    def _to_plan_frame(self):
+        """The transform from the odom frame now to the plan's frame (identity without drift).
+
+        ``inverse(correction at the plan) o correction now``: what odometry
+        drifted since the plan was brought over.
+        """
+        return frames.compose(frames.inverse(self._plan_correction),
+                              self._localization.map_from_odom)
 
     def _on_scan(self, msg):
+        """Scan returns as obstacle points in the odom frame (the one place obstacles come in)."""
+        params = self._params.current
         with self._lock:
             if self._odom is None:
                 return  # cannot place the beams before the first pose
             stamp = conv.stamp_to_seconds(msg.header.stamp)
             if stamp > 0:
-                pose = pose_at(self._odom_history, stamp, self._params.current.odom_timeout)
+                pose = self._localization.odom_pose_at(stamp)
             else:  # an unstamped scan: take it as current
                 pose = self._odom[1]
-            points = conv.scan_to_points(msg, tuple(pose), self._robot_frame_id, 'scan')
+            frame, mount = params.laser_frame_id, (params.laser_x, params.laser_y, params.laser_yaw)
+            if self._tf is not None:
+                frame = msg.header.frame_id
+                mount = self._tf.scan_pose(params.robot_frame_id, frame)
+            laser = frames.compose(pose, mount)
+            points = conv.scan_to_points(msg, tuple(laser), frame, 'scan')
             self._scan = (points, self._now_s())
-            self._track_scan(msg, pose, stamp if stamp > 0 else self._odom[0])
+            self._track_scan(msg, laser, stamp if stamp > 0 else self._odom[0])
 
-    def _track_scan(self, msg, pose, stamp):
-        """Feed a scan taken at ``pose`` to the scan tracker; publish its tracks."""
+    def _track_scan(self, msg, laser, stamp):
+        """Feed a scan taken from ``laser`` (odom frame) to the scan tracker; publish its tracks."""
         if not self._scan_tracks.has_map:
             return
         lag = self._odom[0] - stamp
         timeout = self._params.current.scan_timeout
-        if lag > timeout:
+        correction = self._localization.map_from_odom
+        if correction is None:
+            verdict = ScanVerdict(False, 'no localization yet: scans are not tracked')
+        elif lag > timeout:
             verdict = ScanVerdict(False, f'scan stamped {lag:.2f} s before the latest odometry '
                                          f'(scan_timeout {timeout:g} s): not tracked')
         else:
-            verdict = self._scan_tracks.update(msg, pose, stamp)
+            verdict = self._scan_tracks.update(msg, frames.compose(correction, laser), stamp)
         self._note_tracking(verdict.reason if not verdict.accepted else '')
         if not verdict.accepted:
             return
@@ -597,20 +699,22 @@ class LocalPlannerNode(ManagedNode):
             if self._last_tick is not None and now < self._last_tick - CLOCK_JUMP_TOLERANCE_S:
                 self._on_clock_reset(now)
             self._last_tick = now
+            if self._tf is not None:
+                self._correction_from_tf(params)
             stop_reason = self._stop_reason(now, params)
             if stop_reason is not None:
                 status, message = stop_reason
-                self._publish_command(0.0, 0.0, idle=self._plan is None)
+                self._publish_command(0.0, 0.0, idle=self._plan_map is None)
                 self._report(status, message, WARN if status != 'no_path' else OK)
                 return
-            pose = pose_at((self._odom,), now, params.odom_timeout)
+            drift = self._to_plan_frame()
+            pose = frames.compose(drift, pose_at((self._odom,), now, params.odom_timeout))
             velocity = self._odom[2]
             scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
-            points = np.zeros((0, 2)) if self._scan is None else self._scan[0]
+            points = np.zeros((0, 2)) if self._scan is None \
+                else frames.transform_points(drift, self._scan[0])
             obs = follow.Observation(pose=pose, velocity=velocity, obstacle_points=points,
-                                     tracked=fuse(self._scan_tracks.tracked(now),
-                                                  self._tracker.obstacles(now)),
-                                     time=now)
+                                     tracked=self._tracked_in_plan_frame(now), time=now)
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
             # measured velocity, which an odometry glitch can put beyond them.
@@ -623,8 +727,9 @@ class LocalPlannerNode(ManagedNode):
             self._publish_command(v, omega, idle=command.status in STOPPED_STATUSES)
             if command.local_plan is not None and len(command.local_plan) \
                     and self._local_plan_pub.get_subscription_count() > 0:
-                self._local_plan_pub.publish(
-                    conv.path_to_msg(command.local_plan, self._frame_id, self._stamp()))
+                self._local_plan_pub.publish(conv.path_to_msg(
+                    frames.transform_points(self._plan_correction, command.local_plan),
+                    self._frame_id, self._stamp()))
             step_ms = (time.perf_counter() - started) * 1e3
             self._step_ms_max = max(self._step_ms_max, step_ms)
             self._report_command(command, pose, step_ms, scan_stale)
@@ -632,7 +737,7 @@ class LocalPlannerNode(ManagedNode):
 
     def _stop_reason(self, now, params):
         """``(status, sentence)`` when the robot must stand still, else None."""
-        if self._plan is not None and params.plan_timeout > 0:
+        if self._plan_map is not None and params.plan_timeout > 0:
             if self._plan_sub.get_publisher_count() > 0:
                 self._plan_orphaned_since = None
             elif self._plan_orphaned_since is None:
@@ -642,10 +747,13 @@ class LocalPlannerNode(ManagedNode):
                     f'the plan publisher has been gone for more than {params.plan_timeout:g} s: '
                     'dropping the plan')
                 self._drop_plan()
-        if self._plan is None:
+        if self._plan_map is None:
             return 'no_path', 'no plan: standing still'
         if self._odom is None:
             return 'stale_odom', 'no odometry received: standing still'
+        if self._plan is None:
+            return 'no_localization', ('no localization pose (amcl_pose) yet: cannot bring the '
+                                       'plan into the odom frame; standing still')
         age = now - self._odom_received
         if age > params.odom_timeout:
             return 'stale_odom', (f'odometry is {age:.2f} s old '
@@ -665,7 +773,8 @@ class LocalPlannerNode(ManagedNode):
             f'clock jumped back from {self._last_tick:.3f} s to {now:.3f} s: '
             'waiting for fresh data')
         self._odom = None
-        self._odom_history.clear()
+        self._localization.clear()
+        self._plan = None  # brought over again with the next correction
         self._scan = None
         self._tracker.clear()
         self._scan_tracks.clear()
@@ -678,7 +787,18 @@ class LocalPlannerNode(ManagedNode):
         except Exception as err:  # noqa: BLE001 - last line of defence, never raise
             self.get_logger().error(f'could not publish the stop command: {err}')
 
+    def _tracked_in_plan_frame(self, now):
+        """Scan tracks and ``obstacles`` (map frame) in the plan's frame: ``(K, 5)`` x, y, vx, vy, r."""
+        tracked = fuse(self._scan_tracks.tracked(now), self._tracker.obstacles(now))
+        if len(tracked) and not self._localization.same_frame:
+            to_odom = frames.inverse(self._plan_correction)
+            tracked = tracked.copy()
+            tracked[:, 0:2] = frames.transform_points(to_odom, tracked[:, 0:2])
+            tracked[:, 2:4] = frames.rotate_vectors(to_odom[2], tracked[:, 2:4])
+        return tracked
+
     def _drop_plan(self):
+        self._plan_map = None
         self._plan = None
         self._plan_orphaned_since = None
         self._controller.reset()
@@ -692,8 +812,7 @@ class LocalPlannerNode(ManagedNode):
             return
         self._idle_stop_sent = idle
         if self._stamped:
-            stamp = conv.seconds_to_stamp(self._odom[0]) if self._odom is not None \
-                else self._stamp()
+            stamp = self._odom_stamp if self._odom is not None else self._stamp()
             msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, stamp)
         else:
             msg = conv.velocity_to_twist(v, omega)

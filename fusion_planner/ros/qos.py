@@ -22,6 +22,7 @@ Nav2's costmaps use).
 import collections
 import functools
 
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 
 #: Latched topics (``map``, ``plan``, ``amcl_pose``) as published: reliable, transient local.
@@ -74,10 +75,13 @@ class LatchedOrVolatile:
         # Messages each subscription passed on whose copy the other has not seen yet.
         self._unpaired = (collections.deque(maxlen=DUPLICATE_WINDOW),
                           collections.deque(maxlen=DUPLICATE_WINDOW))
+        # A volatile publisher is incompatible with the latched side only: the
+        # volatile side hears it, so rclpy's "incompatible QoS" warning is noise there.
+        quiet = SubscriptionEventCallbacks(incompatible_qos=lambda event: None)
         self._subscriptions = [
             node.create_subscription(msg_type, topic, functools.partial(self._on_message, side),
-                                     qos)
-            for side, qos in enumerate((latched, volatile))]
+                                     qos, event_callbacks=events)
+            for side, (qos, events) in enumerate(((latched, quiet), (volatile, None)))]
 
     def _on_message(self, side, msg):
         other = self._unpaired[1 - side]

@@ -24,8 +24,22 @@ Topics (relative names, so a namespace or a remap applies):
 
 - ``map`` (nav_msgs/OccupancyGrid, reliable, transient_local) out, once:
   the **known** map, without the scenario's unknown obstacles.
-- ``odom`` (nav_msgs/Odometry, reliable) out, every step: the true
-  pose in ``frame_id`` (child ``robot_frame_id``) and the applied velocity.
+- ``odom`` (nav_msgs/Odometry, reliable) out, every step: wheel odometry
+  in ``odom_frame_id`` (child ``robot_frame_id``), starting at the origin
+  where the robot stands and drifting from the truth by
+  ``odom_scale_error`` of the distance and ``odom_yaw_drift`` of heading
+  per metre (:class:`~fusion_planner.ros.robot_sensors.DriftingOdometry`;
+  both 0: exact), with the measured velocity.
+- ``amcl_pose`` (geometry_msgs/PoseWithCovarianceStamped, reliable,
+  transient local, as AMCL publishes it) out at ``localization_rate``: the
+  true pose in ``frame_id`` plus Gaussian noise (``localization_noise``,
+  ``localization_yaw_noise``), with that covariance.
+- ``ground_truth`` (nav_msgs/Odometry, reliable) out, every step: the true
+  pose and velocity in ``frame_id``, for tests, metrics and recordings.
+- ``/tf`` (tf2_msgs/TFMessage) out when tf2_msgs is importable (a full ROS
+  install): ``odom_frame_id`` -> ``robot_frame_id`` every step and
+  ``frame_id`` -> ``odom_frame_id`` (the localizer's estimate) with each
+  ``amcl_pose``.
 - ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame
   ``robot_frame_id``) out at ``scan_rate``: the world's ray-cast scan
   (REP-117: ``+inf`` no return, ``-inf`` too close).
@@ -64,7 +78,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
+from geometry_msgs.msg import (
+    PoseStamped, PoseWithCovarianceStamped, TransformStamped, Twist, TwistStamped)
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.clock import Clock, ClockType
 from rclpy.qos import ReliabilityPolicy
@@ -72,12 +87,19 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
+try:  # a full ROS install has tf2_msgs; the wheels do not
+    from tf2_msgs.msg import TFMessage
+except ImportError:
+    TFMessage = None
+
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.scenario import load_scenario
 from fusion_planner.core.simulation.world import World
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
+from fusion_planner.ros.frames import map_from_odom
+from fusion_planner.ros.robot_sensors import DriftingOdometry, NoisyLocalizer
 from fusion_planner.ros.qos import (
     LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS, LatchedOrVolatile)
 from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
@@ -119,7 +141,13 @@ class SimulatorParams:
 
     scenario: str = ''
     frame_id: str = 'map'
+    odom_frame_id: str = 'odom'
     robot_frame_id: str = 'base_link'
+    odom_scale_error: float = 0.03
+    odom_yaw_drift: float = 0.01
+    localization_rate: float = 5.0
+    localization_noise: float = 0.02
+    localization_yaw_noise: float = 0.01
     rate: float = 20.0
     real_time_factor: float = 1.0
     scan_rate: float = 10.0
@@ -143,9 +171,23 @@ PARAMETER_SPECS = (
     ParameterSpec('scenario', '',
                   "scenario file (the core's YAML schema); '' loads the bundled "
                   'config/scenarios/demo.yaml', read_only=True),
-    ParameterSpec('frame_id', 'map', 'frame of the map, odometry and obstacles', read_only=True),
+    ParameterSpec('frame_id', 'map',
+                  'map frame: of the map, amcl_pose, ground_truth and obstacles', read_only=True),
+    ParameterSpec('odom_frame_id', 'odom', 'frame of the wheel odometry (REP-105 odom)',
+                  read_only=True),
     ParameterSpec('robot_frame_id', 'base_link', 'robot frame: child of odom, frame of the scan',
                   read_only=True),
+    ParameterSpec('odom_scale_error', 0.03,
+                  'odometry distance error per metre travelled; 0 with odom_yaw_drift 0: exact '
+                  'odometry [1]', float_range(-0.5, 0.5), read_only=True),
+    ParameterSpec('odom_yaw_drift', 0.01, 'odometry heading error gained per metre travelled '
+                  '[rad/m]', float_range(-1.0, 1.0), read_only=True),
+    ParameterSpec('localization_rate', 5.0, 'amcl_pose messages per simulated second [Hz]',
+                  float_range(0.1, 100.0), read_only=True),
+    ParameterSpec('localization_noise', 0.02, 'standard deviation of x and y of amcl_pose [m]',
+                  float_range(0.0, 10.0), read_only=True),
+    ParameterSpec('localization_yaw_noise', 0.01, 'standard deviation of the heading of '
+                  'amcl_pose [rad]', float_range(0.0, 3.0), read_only=True),
     ParameterSpec('rate', 20.0, 'integration steps per simulated second [Hz]',
                   float_range(1.0, 1000.0), read_only=True),
     ParameterSpec('real_time_factor', 1.0,
@@ -219,6 +261,18 @@ def default_scenario_path():
         See :func:`share_file`.
     """
     return share_file(DEMO_SCENARIO)
+
+
+def odometry_msg(pose, velocity, frame_id, child_frame_id, stamp):
+    """A ``nav_msgs/Odometry`` of ``(x, y, yaw)`` in ``frame_id`` and ``(v, omega)``."""
+    msg = Odometry()
+    msg.header.frame_id = frame_id
+    msg.header.stamp = stamp
+    msg.child_frame_id = child_frame_id
+    msg.pose.pose = conv.xy_yaw_to_pose(pose)
+    msg.twist.twist.linear.x = float(velocity[0])
+    msg.twist.twist.angular.z = float(velocity[1])
+    return msg
 
 
 def scan_to_msg(scan, config, frame_id, stamp, scan_period):
@@ -301,6 +355,7 @@ class SimulatorNode(ManagedNode):
                 'contacts with thin walls could be missed; raise rate')
         self._scenario_path = path
         self._frame_id = params.frame_id
+        self._odom_frame_id = params.odom_frame_id
         self._robot_frame_id = params.robot_frame_id
         self._dt = 1.0 / params.rate
         self._goal = np.asarray(s.goal, dtype=float)
@@ -316,6 +371,10 @@ class SimulatorNode(ManagedNode):
         s = self.scenario
         self.world = World(s.grid, s.robot, s.start, s.unknown_obstacles, s.moving_obstacles,
                            s.scan, seed=s.seed)
+        self._odometry_model = DriftingOdometry(params.odom_scale_error, params.odom_yaw_drift)
+        self._localizer = NoisyLocalizer(params.localization_noise,
+                                         params.localization_yaw_noise, s.seed)
+        self._next_localization_time = 0.0
         self._command = (0.0, 0.0)
         self._command_time = -math.inf  # simulated time of the last command [s]
         self._commands_flow = False  # a controller is sending commands (see max_command_lag)
@@ -337,6 +396,9 @@ class SimulatorNode(ManagedNode):
         publisher = self.create_lifecycle_publisher
         self._map_pub = publisher(OccupancyGrid, 'map', LATCHED_QOS)
         self._odom_pub = publisher(Odometry, 'odom', RELIABLE_QOS)
+        self._truth_pub = publisher(Odometry, 'ground_truth', RELIABLE_QOS)
+        self._localization_pub = publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED_QOS)
+        self._tf_pub = publisher(TFMessage, '/tf', RELIABLE_QOS) if TFMessage else None
         self._scan_pub = publisher(LaserScan, 'scan', SENSOR_QOS)
         self._obstacles_pub = publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
         self._clock_pub = publisher(ClockMsg, 'clock', RELIABLE_QOS)
@@ -452,7 +514,9 @@ class SimulatorNode(ManagedNode):
         if world.time - self._command_time > params.cmd_timeout:
             v = omega = 0.0
         before = world.pose[:2].copy()
-        if world.step(v, omega, self._dt):
+        contact = world.step(v, omega, self._dt)
+        self._odometry_model.step(world.velocity[0], world.velocity[1], self._dt)
+        if contact:
             self._diagnostics.update(
                 WARN, f'collision {world.contact_events} at t = {world.time:.2f} s, robot at '
                       f'({world.pose[0]:.2f}, {world.pose[1]:.2f})',
@@ -469,7 +533,19 @@ class SimulatorNode(ManagedNode):
         stamp = conv.seconds_to_stamp(world.time)
         # Sensors first, the clock last: a node whose timer wakes on the new
         # time has (most likely) already received the data of that time.
-        self._odom_pub.publish(self._odometry(stamp))
+        odometry = self._odometry_model
+        self._odom_pub.publish(odometry_msg(odometry.pose, odometry.velocity, self._odom_frame_id,
+                                            self._robot_frame_id, stamp))
+        self._truth_pub.publish(odometry_msg(world.pose, world.velocity, self._frame_id,
+                                             self._robot_frame_id, stamp))
+        transforms = [(self._odom_frame_id, odometry.pose)]
+        if world.time + TIME_EPS_S >= self._next_localization_time:
+            self._next_localization_time = world.time + 1.0 / params.localization_rate
+            estimate = self._localizer.estimate(world.pose)
+            self._localization_pub.publish(self._localization_msg(estimate, stamp))
+            transforms.append((self._frame_id, map_from_odom(estimate, odometry.pose)))
+        if self._tf_pub is not None:
+            self._tf_pub.publish(self._tf_msg(transforms, stamp))
         if force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
             period = 1.0 / params.scan_rate
             self._next_scan_time = world.time + period
@@ -500,17 +576,26 @@ class SimulatorNode(ManagedNode):
         self._waiting_since = None
         return False
 
-    def _odometry(self, stamp):
-        world = self.world
-        msg = Odometry()
+    def _localization_msg(self, pose, stamp):
+        msg = PoseWithCovarianceStamped()
         msg.header.frame_id = self._frame_id
         msg.header.stamp = stamp
-        msg.child_frame_id = self._robot_frame_id
-        msg.pose.pose.position.x = float(world.pose[0])
-        msg.pose.pose.position.y = float(world.pose[1])
-        msg.pose.pose.orientation = conv.quaternion_of_yaw(world.pose[2])
-        msg.twist.twist.linear.x = float(world.velocity[0])
-        msg.twist.twist.angular.z = float(world.velocity[1])
+        msg.pose.pose = conv.xy_yaw_to_pose(pose)
+        msg.pose.covariance = self._localizer.covariance()
+        return msg
+
+    def _tf_msg(self, transforms, stamp):
+        """TFMessage of ``(parent frame, (x, y, yaw))`` pairs: odom -> base_link, map -> odom."""
+        children = {self._odom_frame_id: self._robot_frame_id,
+                    self._frame_id: self._odom_frame_id}
+        msg = TFMessage()
+        for parent, (x, y, yaw) in transforms:
+            t = TransformStamped()
+            t.header.frame_id, t.header.stamp = parent, stamp
+            t.child_frame_id = children[parent]
+            t.transform.translation.x, t.transform.translation.y = float(x), float(y)
+            t.transform.rotation = conv.quaternion_of_yaw(yaw)
+            msg.transforms.append(t)
         return msg
 
     # -- goal and status ----------------------------------------------------------
