@@ -101,7 +101,7 @@ def test_local_planner_avoids_a_walker_with_no_obstacles_publisher(context, tmp_
         speeds = [math.dist((m.points[0].x, m.points[0].y), (m.points[1].x, m.points[1].y))
                   for msg in tracks for m in msg.markers
                   if m.type == Marker.ARROW and m.action == Marker.ADD]
-        assert speeds and max(speeds) == pytest.approx(WALKER['speed'], abs=0.2)
+        assert speeds and np.median(speeds) == pytest.approx(WALKER['speed'], abs=0.2)
     finally:
         demo.shutdown_executor(spinner, nodes)
 
@@ -136,7 +136,8 @@ def _walker_ranges(centre, beams=360, origin=(1.0, 3.0)):
 
 def test_bad_scans_at_the_node_are_refused_or_not_tracked_with_a_reason(context):
     target = FuzzTarget(LocalPlannerNode(context=context, parameter_overrides=[
-        Parameter('use_sim_time', value=True)]))
+        Parameter('use_sim_time', value=True),
+        Parameter('odom_frame_id', value='map')]))  # odometry in the map frame: no correction
     node = target.node
     try:
         grid = GridMap(np.zeros((60, 100), dtype=bool), resolution=0.1)
