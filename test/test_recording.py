@@ -38,7 +38,8 @@ DEMO_TOPICS = {
     '/plan_markers': 'visualization_msgs/msg/MarkerArray', '/local_plan': 'nav_msgs/msg/Path',
     '/odom': 'nav_msgs/msg/Odometry', '/ground_truth': 'nav_msgs/msg/Odometry',
     '/amcl_pose': 'geometry_msgs/msg/PoseWithCovarianceStamped', '/scan': 'sensor_msgs/msg/LaserScan',
-    '/obstacles': 'visualization_msgs/msg/MarkerArray', '/cmd_vel': 'geometry_msgs/msg/Twist',
+    '/obstacles': 'visualization_msgs/msg/MarkerArray', '/tracks': 'visualization_msgs/msg/MarkerArray',
+    '/cmd_vel': 'geometry_msgs/msg/Twist',
     '/goal_pose': 'geometry_msgs/msg/PoseStamped', '/goal_outcome': 'std_msgs/msg/String',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
 }

@@ -28,6 +28,7 @@ EXPECTED_DISPLAYS = {
     ('rviz_default_plugins/Path', '/local_plan'),
     ('rviz_default_plugins/LaserScan', '/scan'),
     ('rviz_default_plugins/MarkerArray', '/obstacles'),
+    ('rviz_default_plugins/MarkerArray', '/tracks'),
     ('rviz_default_plugins/MarkerArray', '/plan_markers'),
     ('rviz_default_plugins/Odometry', '/ground_truth'),
     ('rviz_default_plugins/PoseWithCovariance', '/amcl_pose'),

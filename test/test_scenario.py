@@ -78,6 +78,8 @@ def test_a_full_scenario_loads(room):
     assert s.scan.beams == 90 and s.scan.fov == pytest.approx(2 * math.pi)
     assert s.grid.shape == (80, 100)
     assert pathlib.Path(s.map_path) == (room / 'room.yaml').resolve()
+    assert s.perception == 'scan'
+    assert load_scenario(write(room, {**base_doc(), 'perception': 'ideal'})).perception == 'ideal'
 
 
 def test_map_path_is_relative_to_the_scenario_file(room):
@@ -142,6 +144,8 @@ def test_missing_keys(room, drop, key):
     (lambda d: d['robot'].update(wheels=3), 'robot.wheels'),
     (lambda d: d['planner'].update(algorithm='bfs'), 'planner'),
     (lambda d: d.update(seed=-1), 'seed'),
+    (lambda d: d.update(perception='oracle'), 'perception'),
+    (lambda d: d.update(perception=1), 'perception'),
     (lambda d: d.update(unknown_obstacles={'circle': 1}), 'unknown_obstacles'),
 ])
 def test_wrong_types_and_values(room, edit, key):

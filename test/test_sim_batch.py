@@ -1,5 +1,7 @@
 """The generated-scenario claims in the suite: fusion reaches >= 98 % without contact.
 
+The controllers get the default scan perception (the scan tracker's moving tracks).
+
 A modest batch (the 200-scenario batch of docs/ALGORITHM.md is run by hand
 with ``fusion-planner sim --random 200 --seed 0 --json``), plus the generated
 scenarios on which a moving obstacle used to walk into the slowed or

@@ -66,6 +66,16 @@ def test_classic_apf_on_figure_5a_exits_1_with_a_reason(capsys):
     assert report['reached'] is False and report['failure']
 
 
+def test_perception_of_a_scenario_comes_from_the_file_or_the_command_line(capsys, room):
+    _, out, _ = run_cli(capsys, '--scenario', str(scenario_file(room)), '--json')
+    assert json.loads(out)['perception'] == 'scan'
+    path = scenario_file(room, perception='ideal')
+    _, out, _ = run_cli(capsys, '--scenario', str(path), '--json')
+    assert json.loads(out)['perception'] == 'ideal'
+    _, out, _ = run_cli(capsys, '--scenario', str(path), '--perception', 'scan')
+    assert '/ scan perception' in out
+
+
 def test_text_summary_and_seed_override(capsys, room):
     code, out, _ = run_cli(capsys, '--scenario', str(scenario_file(room)), '--seed', '9')
     assert code == 0
@@ -110,6 +120,7 @@ def test_bad_scenario_files_exit_2_with_one_line(capsys, room, changes, words):
     (['--scenario', 'SCEN', '--random', '2'], 'exactly one of'),
     (['--random', '2', '--plot', 'x.png'], '--plot'),
     (['--scenario', 'SCEN', '--controller', 'fusion', '--controller', 'apf'], 'once'),
+    (['--scenario', 'SCEN', '--perception', 'scan', '--perception', 'ideal'], 'once'),
     (['--scenario', 'SCEN', '--family', 'clutter'], 'needs --random'),
     (['--random', '1', '--family', 'maze'], 'unknown family'),
 ])
@@ -140,20 +151,32 @@ def test_batch_json_and_progress(capsys):
     for summary in report['controllers'].values():
         assert {'success_rate', 'collisions', 'mean_time_s'} <= set(summary)
         assert 0.0 <= summary['success_rate'] <= 1.0
-    assert len(report['episodes']) == 4
+    assert len(report['episodes']) == 8          # 2 scenarios x 2 controllers x 2 perceptions
+    assert set(report['by_perception']) == {'scan', 'ideal'}
+    assert report['by_perception']['scan'] == report['controllers']
+    assert {e['perception'] for e in report['episodes']} == {'scan', 'ideal'}
     assert 'ETA' in err and '2/2' in err
+
+
+def test_batch_with_one_perception(capsys):
+    code, out, _ = run_cli(capsys, '--random', '1', '--seed', '4', '--controller', 'astar-track',
+                           '--perception', 'ideal', '--json')
+    report = json.loads(out)
+    assert code == 0 and 'by_perception' not in report
+    assert [e['perception'] for e in report['episodes']] == ['ideal']
 
 
 def test_batch_table_lists_every_controller(capsys):
     code, out, _ = run_cli(capsys, '--random', '1', '--seed', '3')
     assert code == 0
     for name in ('fusion', 'apf', 'classic-apf', 'dwa', 'astar-track'):
-        assert f'| {name} |' in out
+        for mode in ('scan', 'ideal'):
+            assert f'| {name} | {mode} |' in out
 
 
 def test_a_family_batch_in_json_and_in_the_table(capsys):
     code, out, _ = run_cli(capsys, '--random', '1', '--family', 'narrow', '--controller',
-                           'astar-track', '--json')
+                           'astar-track', '--perception', 'scan', '--json')
     report = json.loads(out)
     assert code == 0 and report['family'] == 'narrow'
     row, = report['episodes']
@@ -163,4 +186,4 @@ def test_a_family_batch_in_json_and_in_the_table(capsys):
     assert {'success_on_solvable', 'outcomes', 'stuck_run_fraction', 'mean_time_ratio',
             'no_path_fraction', 'max_no_path_delay_s'} <= set(summary)
     code, out, _ = run_cli(capsys, '--random', '1', '--family', 'narrow', '--controller', 'astar-track')
-    assert code == 0 and '1 narrow scenarios' in out and '| astar-track |' in out
+    assert code == 0 and '1 narrow scenarios' in out and '| astar-track | scan |' in out

@@ -19,6 +19,8 @@ TARGETS = {
     'refine': 'fusion_planner.bench.refine',
     'families': 'fusion_planner.bench.families',
     'node': 'fusion_planner.bench.node_latency',
+    'tracker': 'fusion_planner.bench.tracker',
+    'dynamic': 'fusion_planner.bench.dynamic',
 }
 
 

@@ -856,7 +856,8 @@ def recorded_topics():
             ('plan_markers', MarkerArray, reliable), ('local_plan', Path, reliable),
             ('odom', Odometry, reliable), ('ground_truth', Odometry, reliable),
             ('amcl_pose', PoseWithCovarianceStamped, latched), ('scan', LaserScan, sensor),
-            ('obstacles', MarkerArray, reliable), ('cmd_vel', Twist, reliable),
+            ('obstacles', MarkerArray, reliable), ('tracks', MarkerArray, reliable),
+            ('cmd_vel', Twist, reliable),
             ('goal_pose', PoseStamped, reliable), ('goal_outcome', String, reliable),
             ('/diagnostics', DiagnosticArray, reliable))
 

@@ -2,10 +2,10 @@
 
 Usage::
 
-    fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--json] [--plot PNG]
-        [--gif GIF]
-    fusion-planner sim --random N [--family F] [--seed S] [--controller NAME ...] [--jobs J]
-        [--json]
+    fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--perception MODE]
+        [--json] [--plot PNG] [--gif GIF]
+    fusion-planner sim --random N [--family F] [--seed S] [--controller NAME ...]
+        [--perception MODE ...] [--jobs J] [--json]
 
 Contract:
 
@@ -16,6 +16,11 @@ Contract:
 - ``--family F`` (batch only) picks the scenario family, one of ``mixed``
   (the default), ``clutter``, ``corridors``, ``narrow``, ``unreachable``
   (docs/SCENARIOS.md).
+- ``MODE`` is what the controller is told about moving obstacles: ``scan``
+  (what a tracker makes of the simulated laser scans; hidden people are
+  unseen) or ``ideal`` (their true states). A scenario runs the file's
+  ``perception`` (default ``scan``); a batch runs both side by side unless
+  ``--perception`` is given (it may be repeated).
 - ``--seed`` overrides the scenario's world seed (random walks, scan noise);
   for ``--random`` it is the batch seed (default 0): the same seed gives the
   same scenarios and the same results.
@@ -24,12 +29,14 @@ Contract:
   ``collisions`` or ``time_limit``), ``collisions``, ``time_s``,
   ``path_length_m``, ``min_clearance_m``, ``stuck_events``, ``failure``
   (null or ``'<outcome>: <sentence>'``) plus ``scenario``, ``family``,
-  ``solvable``, ``controller``, ``seed``, ``plan_length_m``,
+  ``solvable``, ``controller``, ``perception``, ``seed``, ``plan_length_m``,
   ``moving_collisions`` (the contacts a moving obstacle began),
   ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s`` and
   ``time_ratio``. A batch: ``scenarios``, ``family``, ``seed``,
   ``wall_time_s``, ``controllers`` (per controller the fields of
-  :class:`~fusion_planner.core.simulation.episodes.ControllerSummary`) and
+  :class:`~fusion_planner.core.simulation.episodes.ControllerSummary`) under
+  the first perception, ``by_perception`` (the same per perception, when
+  there are several) and
   ``episodes`` (one row per run).
 - ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6;
   ``--gif GIF`` (scenario only) writes it as an animation. Both need the
@@ -53,6 +60,7 @@ from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import PlanningError
 from fusion_planner.core.simulation.episodes import CONTROLLERS
 from fusion_planner.core.simulation.families import FAMILIES
+from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 
 EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -73,6 +81,10 @@ def add_parser(subparsers):
     parser.add_argument('--family', metavar='F',
                         help=f'scenario family of a batch, one of {", ".join(FAMILIES)} '
                              '(default mixed)')
+    parser.add_argument('--perception', action='append', choices=PERCEPTION_MODES,
+                        help='what the controller knows of moving obstacles: scan (tracked from '
+                             'the laser) or ideal (true states); default the scenario\'s (scan), '
+                             'both for a batch; repeat to select both for a batch')
     parser.add_argument('--seed', type=_seed, metavar='N',
                         help='world seed of a scenario (default: the file\'s), batch seed (default 0)')
     parser.add_argument('--jobs', type=_count, default=1, metavar='J',
@@ -122,6 +134,8 @@ def _run(args):
             raise _BadInput('--family chooses generated scenarios; it needs --random N')
         if len(controllers) != 1:
             raise _BadInput('a scenario runs one controller; give --controller once')
+        if args.perception and len(args.perception) != 1:
+            raise _BadInput('a scenario runs one perception; give --perception once')
         _check_outputs(args)
         return _run_scenario(args, controllers[0])
     except (_BadInput, PlanningError) as err:
@@ -154,8 +168,9 @@ def _run_scenario(args, controller):
     from fusion_planner.core.simulation.episodes import run_episode
 
     scenario = load_scenario(args.scenario)
+    perception = args.perception[0] if args.perception else None
     result = run_episode(scenario, controller, seed=args.seed,
-                         record=bool(args.plot or args.gif))
+                         record=bool(args.plot or args.gif), perception=perception)
     if args.plot:
         try:
             from fusion_planner.cli.sim_plot import plot_episode
@@ -186,7 +201,8 @@ def _run_batch(args, controllers):
     reporter = Progress(args.random, 'sim', unit='scenarios')
     batch = run_batch(args.random, seed, controllers=controllers,
                       progress=lambda done, _total: reporter.advance(done - reporter.done),
-                      workers=args.jobs, family=family)
+                      workers=args.jobs, family=family,
+                      perceptions=args.perception or PERCEPTION_MODES)
     reporter.finish()
     if args.json:
         print(json.dumps(batch.as_dict()))
@@ -197,7 +213,8 @@ def _run_batch(args, controllers):
 
 def _episode_line(s):
     outcome = 'reached' if s['reached'] else f'NOT reached ({s["failure"]})'
-    return (f'{s["scenario"]} / {s["controller"]} (seed {s["seed"]}): {outcome}; '
+    return (f'{s["scenario"]} / {s["controller"]} / {s["perception"]} perception '
+            f'(seed {s["seed"]}): {outcome}; '
             f'time {s["time_s"]:.1f} s (x{_num(s["time_ratio"])} the optimal path at top speed), '
             f'path {s["path_length_m"]:.2f} m, '
             f'collisions {s["collisions"]}, min clearance {_num(s["min_clearance_m"], "m")}, '
@@ -213,7 +230,7 @@ def batch_table(batch, wall_time=False):
     wall_time : bool
         Add a column with each controller's wall time [s].
     """
-    header = ['controller', 'success (solvable)', 'outcomes', 'contacts (episodes; by moving)',
+    header = ['controller', 'perception', 'success (solvable)', 'outcomes', 'contacts (episodes; by moving)',
               'runs with stuck', 'time / optimal', 'path / optimal', 'mean min clearance [m]',
               'no_path (unsolvable)', 'max proof-to-end [s]']
     if wall_time:
@@ -223,8 +240,9 @@ def batch_table(batch, wall_time=False):
              '',
              '| ' + ' | '.join(header) + ' |',
              '|' + '---|' * len(header)]
-    for name, s in batch.controllers.items():
-        cells = [name, _rate(s.success_on_solvable, s.solvable_reached, s.solvable_episodes),
+    summaries = [s for by_name in batch.by_perception.values() for s in by_name.values()]
+    for s in summaries:
+        cells = [s.controller, s.perception, _rate(s.success_on_solvable, s.solvable_reached, s.solvable_episodes),
                  _outcomes(s.outcomes),
                  f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions})',
                  _percent(s.stuck_run_fraction), _num(s.mean_time_ratio),

@@ -33,14 +33,28 @@ Topics (relative names, so a namespace or a remap applies):
   mounted at ``laser_x``, ``laser_y``, ``laser_yaw`` on the robot) in:
   obstacle points, placed in the odom frame with the odometry pose of the
   scan's stamp (:meth:`LocalPlannerNode._on_scan`, the one place where
-  obstacles come in).
+  obstacles come in), and the moving obstacles: a scan tracker
+  (:class:`~fusion_planner.ros.scan_tracks.ScanTracks`, map frame, laser
+  placed with the map -> odom correction) follows the returns the map does
+  not explain and reports the ones that move. A valid scan the tracker
+  cannot use (no localization yet, stamped more than ``scan_timeout``
+  before the latest odometry, not newer than the last tracked one, without
+  beams) is not tracked; why is logged (rate-limited) and kept in the
+  diagnostics value ``scan_tracking``.
 - ``map`` (nav_msgs/OccupancyGrid, latched or volatile publishers) in: the
   known map the fusion controller replans on, with the obstacles it has
   scanned, when it is stuck (:class:`~fusion_planner.core.local_planning.replanning.GridReplanner`,
-  as in the simulation); without a map it recovers without replanning.
+  as in the simulation); without a map it recovers without replanning. The
+  scan tracker tells people from walls with it too: no scan tracks until it
+  arrives.
 - ``obstacles`` (visualization_msgs/MarkerArray of id-stable cylinders,
-  ``frame_id``) in: tracked moving obstacles, brought into the odom frame; velocities are estimated from successive
-  positions (:class:`~fusion_planner.ros.conversions.ObstacleTracker`).
+  ``frame_id``) in, optional: moving obstacles tracked elsewhere, brought
+  into the odom frame; velocities are estimated from successive positions
+  (:class:`~fusion_planner.ros.conversions.ObstacleTracker`). Fused with the
+  scan tracks: an obstacle from here replaces a scan track it overlaps.
+- ``tracks`` (visualization_msgs/MarkerArray, ``frame_id``) out with each
+  tracked scan: the scan tracker's moving tracks, a cylinder and a velocity
+  arrow each.
 - ``cmd_vel`` (geometry_msgs/Twist, or TwistStamped with
   ``enable_stamped_cmd_vel``, reliable) out, at ``control_rate`` on the node
   clock while a plan is followed. A TwistStamped carries the stamp of the
@@ -92,12 +106,14 @@ from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
 from fusion_planner.core.global_planning.planner import PlannerConfig
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
 from fusion_planner.core.local_planning.replanning import GridReplanner
+from fusion_planner.core.local_planning.scan_tracker import ScanVerdict
 from fusion_planner.ros import conversions as conv
-from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter, one_line
 from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
 from fusion_planner.ros.goal_outcome import (
     CONTROLLER_OUTCOME_TOPIC, OUTCOME_OF_STATUS, controller_outcome_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
+from fusion_planner.ros.scan_tracks import ScanTracks, fuse, tracks_to_markers
 from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros import frames
 from fusion_planner.ros.frames import Localization
@@ -422,6 +438,8 @@ class LocalPlannerNode(ManagedNode):
         self._controller = follow.make_controller(params.controller, params.follower_params(),
                                                   replan=self._replan)
         self._tracker = conv.ObstacleTracker(params.frame_id, timeout_s=params.obstacle_timeout)
+        self._scan_tracks = ScanTracks(params.frame_id)
+        self._tracking_note = ''   # why the last scan was not tracked ('' when it was)
         self._plan_map = None      # (N, 2) the plan as received, map frame [m]
         self._plan = None          # (N, 2) that plan in the odom frame, being followed [m]
         self._plan_correction = None  # the map -> odom correction it was brought over with
@@ -454,6 +472,7 @@ class LocalPlannerNode(ManagedNode):
         twist_type = TwistStamped if self._stamped else Twist
         self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
         self._local_plan_pub = self.create_lifecycle_publisher(Path, 'local_plan', RELIABLE_QOS)
+        self._tracks_pub = self.create_lifecycle_publisher(MarkerArray, 'tracks', RELIABLE_QOS)
         self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
                                            ReliabilityPolicy.RELIABLE)
         self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
@@ -519,6 +538,7 @@ class LocalPlannerNode(ManagedNode):
         config = PlannerConfig(robot_radius=params.robot_radius)
         with self._lock:
             self._replanner = GridReplanner(grid, config)
+            self._scan_tracks.set_map(grid)
 
     def _replan(self, start, goal, obstacle_points):
         """The controller's replanner: the map plus the scanned obstacles (see GridReplanner).
@@ -604,6 +624,37 @@ class LocalPlannerNode(ManagedNode):
             laser = frames.compose(pose, mount)
             points = conv.scan_to_points(msg, tuple(laser), frame, 'scan')
             self._scan = (points, self._now_s())
+            self._track_scan(msg, laser, stamp if stamp > 0 else self._odom[0])
+
+    def _track_scan(self, msg, laser, stamp):
+        """Feed a scan taken from ``laser`` (odom frame) to the scan tracker; publish its tracks."""
+        if not self._scan_tracks.has_map:
+            return
+        lag = self._odom[0] - stamp
+        timeout = self._params.current.scan_timeout
+        correction = self._localization.map_from_odom
+        if correction is None:
+            verdict = ScanVerdict(False, 'no localization yet: scans are not tracked')
+        elif lag > timeout:
+            verdict = ScanVerdict(False, f'scan stamped {lag:.2f} s before the latest odometry '
+                                         f'(scan_timeout {timeout:g} s): not tracked')
+        else:
+            verdict = self._scan_tracks.update(msg, frames.compose(correction, laser), stamp)
+        self._note_tracking(verdict.reason if not verdict.accepted else '')
+        if not verdict.accepted:
+            return
+        if self._tracks_pub.get_subscription_count() > 0:
+            self._tracks_pub.publish(tracks_to_markers(self._scan_tracks.report(),
+                                                       self._frame_id, self._stamp()))
+
+    def _note_tracking(self, reason):
+        """Say (once per change, rate-limited) why a valid scan was not tracked ('' when it was)."""
+        if reason == self._tracking_note:
+            return
+        self._tracking_note = reason
+        if reason:
+            self._diagnostics.log.warning('scan/not_tracked', one_line(f'scan: {reason}'))
+        self._diagnostics.update(self._level, self._message, scan_tracking=reason or 'tracking')
 
     def _on_obstacles(self, msg):
         with self._lock:
@@ -726,6 +777,7 @@ class LocalPlannerNode(ManagedNode):
         self._plan = None  # brought over again with the next correction
         self._scan = None
         self._tracker.clear()
+        self._scan_tracks.clear()
         self._plan_orphaned_since = None
 
     def _on_fault(self):
@@ -736,8 +788,8 @@ class LocalPlannerNode(ManagedNode):
             self.get_logger().error(f'could not publish the stop command: {err}')
 
     def _tracked_in_plan_frame(self, now):
-        """The tracked obstacles (map frame) in the plan's frame: ``(K, 5)`` x, y, vx, vy, r."""
-        tracked = self._tracker.obstacles(now)
+        """Scan tracks and ``obstacles`` (map frame) in the plan's frame: ``(K, 5)`` x, y, vx, vy, r."""
+        tracked = fuse(self._scan_tracks.tracked(now), self._tracker.obstacles(now))
         if len(tracked) and not self._localization.same_frame:
             to_odom = frames.inverse(self._plan_correction)
             tracked = tracked.copy()

@@ -10,6 +10,10 @@ the scenario's ``dt``::
     scan -> Observation(scan hit points, tracked obstacles) -> controller.compute
          -> world.step(v, omega)
 
+where the tracked obstacles are what the scan tracker makes of the scans
+(perception ``scan``) or the true moving obstacles (``ideal``; see
+:mod:`~fusion_planner.core.simulation.perception`)
+
 until the robot arrives (within the goal tolerance *and* the controller
 reports ``'arrived'``), the controller reports ``'no_path'`` or
 ``'failed'``, the contact-event limit is reached, or time runs out.
@@ -35,6 +39,7 @@ from fusion_planner.core.local_planning import follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.global_planning.planner import GlobalPlanner
 from fusion_planner.core.simulation.families import FAMILIES, family_scenario
+from fusion_planner.core.simulation.perception import PERCEPTION_MODES, check_mode, make_perception
 from fusion_planner.core.simulation.scenario import random_scenario
 from fusion_planner.core.simulation.world import World
 
@@ -67,6 +72,9 @@ class EpisodeResult:
     controller : str
     seed : int
         Seed of the world (random walks, scan noise).
+    perception : str
+        What the controller was told of the moving obstacles (one of
+        :data:`PERCEPTION_MODES`).
     reached : bool
         Arrived within the goal tolerance with status ``'arrived'``.
     collisions : int
@@ -124,6 +132,7 @@ class EpisodeResult:
     min_clearance_m: float
     stuck_events: int
     moving_collisions: int = 0
+    perception: str = PERCEPTION_MODES[0]
     outcome: str = 'reached'
     failure: str = None
     plan_length_m: float = None
@@ -154,7 +163,7 @@ class EpisodeResult:
             ``reached``, ``outcome``, ``collisions``, ``time_s``,
             ``path_length_m``, ``min_clearance_m``, ``stuck_events``,
             ``failure`` (None or a reason), ``scenario``, ``family``,
-            ``solvable``, ``controller``, ``seed``, ``plan_length_m``,
+            ``solvable``, ``controller``, ``perception``, ``seed``, ``plan_length_m``,
             ``moving_collisions``, ``no_path_proven_at_s``,
             ``optimal_length_m``, ``optimal_time_s``, ``time_ratio``.
         """
@@ -163,6 +172,7 @@ class EpisodeResult:
             'family': self.family,
             'solvable': self.solvable,
             'controller': self.controller,
+            'perception': self.perception,
             'seed': self.seed,
             'reached': bool(self.reached),
             'outcome': self.outcome,
@@ -252,7 +262,7 @@ def optimal_length(scenario):
 
 
 def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
-                optimal_length_m=_COMPUTE):
+                optimal_length_m=_COMPUTE, perception=None):
     """Run one controller on one scenario.
 
     Parameters
@@ -270,6 +280,9 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     optimal_length_m : float or None, optional
         The scenario's :func:`optimal_length` when already known (None:
         there is none); computed when not given.
+    perception : str or ScanPerception or IdealPerception, optional
+        One of :data:`PERCEPTION_MODES` (default ``scenario.perception``),
+        or a perception object to use (and inspect afterwards).
 
     Returns
     -------
@@ -278,7 +291,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     Raises
     ------
     InvalidInput
-        Unknown controller name or invalid follower overrides.
+        Unknown controller name or perception, or invalid follower overrides.
 
     Examples
     --------
@@ -290,6 +303,11 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     if controller_name not in CONTROLLERS:
         raise InvalidInput(
             f'unknown controller {controller_name!r}; choose one of {", ".join(CONTROLLERS)}')
+    perception = scenario.perception if perception is None else perception
+    if isinstance(perception, str):
+        perceive = make_perception(perception, scenario.grid)
+    else:
+        perceive, perception = perception, perception.mode
     params = follower_params(scenario)
     # Fusion may replan on the known map plus the obstacles it has seen when
     # its escape toward the next key node fails (see follow.GridReplanner).
@@ -302,7 +320,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     if optimal_length_m is _COMPUTE:
         optimal_length_m = optimal_length(scenario)
     reference = dict(
-        scenario=scenario.name, controller=controller_name, seed=seed,
+        scenario=scenario.name, controller=controller_name, seed=seed, perception=perception,
         family=scenario.family, solvable=scenario.solvable, optimal_length_m=optimal_length_m,
         optimal_time_s=(None if optimal_length_m is None
                         else optimal_length_m / scenario.robot.max_speed))
@@ -339,7 +357,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     for _ in range(max_steps):
         scan = world.scan()
         obs = follow.Observation(pose=world.pose.copy(), velocity=world.velocity.copy(),
-                                 obstacle_points=scan.points, tracked=world.tracked_obstacles(),
+                                 obstacle_points=scan.points, tracked=perceive.tracked(world, scan),
                                  time=world.time)
         command = controller.compute(obs)
         if record:
@@ -396,6 +414,8 @@ class ControllerSummary:
     Attributes
     ----------
     controller : str
+    perception : str
+        One of :data:`PERCEPTION_MODES`.
     episodes : int
     reached : int
     success_rate : float
@@ -439,6 +459,7 @@ class ControllerSummary:
     """
 
     controller: str
+    perception: str = PERCEPTION_MODES[0]
     episodes: int = 0
     reached: int = 0
     success_rate: float = 0.0
@@ -482,11 +503,14 @@ class BatchResult:
     scenarios : int
     seed : int
     controllers : dict of str to ControllerSummary
+        Under the first perception of the batch.
     episodes : list of dict
         :meth:`EpisodeResult.summary` of every episode plus ``wall_time_s``.
     wall_time_s : float
     family : str
         The scenario family (see :data:`FAMILIES`).
+    by_perception : dict of str to dict of str to ControllerSummary
+        The summaries under every perception of the batch, first one first.
     """
 
     scenarios: int
@@ -495,10 +519,11 @@ class BatchResult:
     episodes: list
     wall_time_s: float
     family: str = 'mixed'
+    by_perception: dict = field(default_factory=dict)
 
     def as_dict(self):
-        """JSON-ready form."""
-        return {
+        """JSON-ready form; ``by_perception`` only when the batch compared perceptions."""
+        out = {
             'scenarios': self.scenarios,
             'family': self.family,
             'seed': self.seed,
@@ -506,6 +531,11 @@ class BatchResult:
             'controllers': {name: s.as_dict() for name, s in self.controllers.items()},
             'episodes': self.episodes,
         }
+        if len(self.by_perception) > 1:
+            out['by_perception'] = {
+                mode: {name: s.as_dict() for name, s in summaries.items()}
+                for mode, summaries in self.by_perception.items()}
+        return out
 
 
 def batch_seeds(n, seed):
@@ -537,14 +567,15 @@ def generate(family, seed, config=None):
     return family_scenario(family, seed)
 
 
-def run_scenario_set(scenario_seed, controllers, config=None, family='mixed'):
-    """Generate one scenario of a family and run every controller on it.
+def run_scenario_set(scenario_seed, controllers, config=None, family='mixed',
+                     perceptions=PERCEPTION_MODES[:1]):
+    """Generate one scenario of a family and run every controller on it under every perception.
 
     Returns
     -------
     list of dict
-        One :meth:`EpisodeResult.summary` per controller, each with
-        ``wall_time_s`` (wall time of that episode).
+        One :meth:`EpisodeResult.summary` per perception and controller,
+        each with ``wall_time_s`` (wall time of that episode).
     """
     scenario = generate(family, scenario_seed, config)
     optimal = optimal_length(scenario)
@@ -553,17 +584,19 @@ def run_scenario_set(scenario_seed, controllers, config=None, family='mixed'):
     except PlanningError:
         plan = None
     rows = []
-    for name in controllers:
-        t0 = time.perf_counter()
-        result = run_episode(scenario, name, record=False, plan=plan, optimal_length_m=optimal)
-        row = result.summary()
-        row['wall_time_s'] = round(time.perf_counter() - t0, 4)
-        rows.append(row)
+    for mode in perceptions:
+        for name in controllers:
+            t0 = time.perf_counter()
+            result = run_episode(scenario, name, record=False, plan=plan,
+                                 optimal_length_m=optimal, perception=mode)
+            row = result.summary()
+            row['wall_time_s'] = round(time.perf_counter() - t0, 4)
+            rows.append(row)
     return rows
 
 
 def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, workers=1,
-              family='mixed'):
+              family='mixed', perceptions=PERCEPTION_MODES[:1]):
     """Run controllers side by side on ``n`` generated scenarios of one family.
 
     Parameters
@@ -583,6 +616,9 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
         it.
     family : str
         One of :data:`FAMILIES`.
+    perceptions : sequence of str
+        Modes from :data:`PERCEPTION_MODES`; every controller runs under
+        each.
 
     Returns
     -------
@@ -591,7 +627,7 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     Raises
     ------
     InvalidInput
-        ``n < 1``, unknown controller or family, bad worker count.
+        ``n < 1``, unknown controller, family or perception, bad worker count.
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise InvalidInput(f'the batch size must be a positive integer, got {n!r}')
@@ -603,27 +639,36 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     for name in controllers:
         if name not in CONTROLLERS:
             raise InvalidInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
+    perceptions = tuple(dict.fromkeys(perceptions))
+    if not perceptions:
+        raise InvalidInput('a batch needs at least one perception')
+    for mode in perceptions:
+        check_mode(mode)
     seeds = batch_seeds(n, seed)
     t0 = time.perf_counter()
     per_scenario = [None] * n
     if workers == 1:
         for i, s in enumerate(seeds):
-            per_scenario[i] = run_scenario_set(s, controllers, config, family)
+            per_scenario[i] = run_scenario_set(s, controllers, config, family, perceptions)
             if progress is not None:
                 progress(i + 1, n)
     else:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_scenario_set, s, controllers, config, family): i
+            futures = {pool.submit(run_scenario_set, s, controllers, config, family, perceptions): i
                        for i, s in enumerate(seeds)}
             for done, future in enumerate(concurrent.futures.as_completed(futures), start=1):
                 per_scenario[futures[future]] = future.result()
                 if progress is not None:
                     progress(done, n)
     episodes = [row for rows in per_scenario for row in rows]
-    summaries = {name: summarise(name, [e for e in episodes if e['controller'] == name])
-                 for name in controllers}
-    return BatchResult(scenarios=n, seed=int(seed), controllers=summaries, episodes=episodes,
-                       wall_time_s=time.perf_counter() - t0, family=family)
+    by_perception = {
+        mode: {name: summarise(name, [e for e in episodes if e['controller'] == name
+                                      and e['perception'] == mode], mode)
+               for name in controllers}
+        for mode in perceptions}
+    return BatchResult(scenarios=n, seed=int(seed), controllers=by_perception[perceptions[0]],
+                       episodes=episodes, wall_time_s=time.perf_counter() - t0, family=family,
+                       by_perception=by_perception)
 
 
 def _mean(values):
@@ -631,9 +676,9 @@ def _mean(values):
     return float(np.mean(values)) if values else None
 
 
-def summarise(controller, rows):
-    """A :class:`ControllerSummary` from episode summary rows of one controller."""
-    out = ControllerSummary(controller=controller, episodes=len(rows))
+def summarise(controller, rows, perception=PERCEPTION_MODES[0]):
+    """A :class:`ControllerSummary` from episode summary rows of one controller and perception."""
+    out = ControllerSummary(controller=controller, perception=perception, episodes=len(rows))
     if not rows:
         return out
     ok = [r for r in rows if r['reached']]

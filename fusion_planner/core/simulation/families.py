@@ -21,6 +21,9 @@ seed, same scenario); docs/SCENARIOS.md describes every family.
     Two rooms joined by one or two openings on the known map, each closed by
     a box missing from the map: the goal is reachable on the known map and
     not in the world.
+``'crossing'``, ``'crowd'``, ``'blind-corner'``, ``'fast-obstacle'``
+    Moving obstacles are the difficulty
+    (:mod:`~fusion_planner.core.simulation.dynamic_families`).
 
 Every scenario passes the loader's checks
 (:func:`~fusion_planner.core.simulation.scenario.check_scenario`), plans on
@@ -43,6 +46,7 @@ from scipy import ndimage
 
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.grid import GridMap
+from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES
 from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 from fusion_planner.core.simulation.scenario import (
     DEFAULT_SAFETY_DISTANCE, Limits, Scenario, ScenarioError, check_scenario, random_scenario)
@@ -50,7 +54,7 @@ from fusion_planner.core.simulation.world import (
     MovingObstacle, Rectangle, RobotSpec, ScanConfig, WaypointMotion, rasterise_obstacles)
 
 #: Family names, in the order reports list them; ``'mixed'`` is the default.
-FAMILIES = ('mixed', 'clutter', 'corridors', 'narrow', 'unreachable')
+FAMILIES = ('mixed', 'clutter', 'corridors', 'narrow', 'unreachable') + tuple(DYNAMIC_FAMILIES)
 
 #: Bound on the regeneration attempts of one scenario.
 MAX_ATTEMPTS = 100
@@ -149,6 +153,8 @@ def family_scenario(family, seed):
         raise InvalidInput(f'unknown scenario family {family!r}; choose one of {", ".join(FAMILIES)}')
     if family == 'mixed':
         return random_scenario(seed)
+    if family in DYNAMIC_FAMILIES:
+        return DYNAMIC_FAMILIES[family](seed)
     build = {'clutter': _clutter, 'corridors': _corridors, 'narrow': _narrow,
              'unreachable': _unreachable}[family]
     rng = np.random.default_rng(np.random.SeedSequence(int(seed)))

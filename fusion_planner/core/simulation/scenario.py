@@ -49,6 +49,10 @@ key                                type        default     meaning
 ``scan.range_min``                 float >= 0  0.05        shortest valid range
 ``scan.range_max``                 float > 0   8.0         longest range
 ``scan.noise_std``                 float >= 0  0.0         Gaussian range noise
+``perception``                     str         ``scan``    what the controller is told about moving
+                                                           obstacles: ``scan`` (tracked from the
+                                                           simulated scans) or ``ideal`` (their true
+                                                           states, seen or not)
 ``follower``                       mapping     ``{}``      overrides of ``FollowerParams`` fields (the
                                                            robot limits and ``control_period`` come from
                                                            ``robot`` and ``limits``)
@@ -86,6 +90,7 @@ from fusion_planner.core import map_files
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 from fusion_planner.core.simulation.world import (
     BounceMotion, Circle, MovingObstacle, RandomWalkMotion, Rectangle, RobotSpec, ScanConfig,
     StaticScene, WaypointMotion, rasterise_obstacles)
@@ -98,7 +103,7 @@ MAX_SCENARIO_BYTES = 1 << 20
 DEFAULT_SAFETY_DISTANCE = 0.3
 
 _TOP_KEYS = ('name', 'description', 'map', 'seed', 'robot', 'goal', 'unknown_obstacles',
-             'moving_obstacles', 'planner', 'limits', 'scan', 'follower')
+             'moving_obstacles', 'planner', 'limits', 'scan', 'follower', 'perception')
 _ROBOT_KEYS = ('start', 'radius', 'max_speed', 'max_accel', 'max_omega')
 _LIMIT_KEYS = ('time_limit_s', 'dt', 'max_collisions')
 _SCAN_KEYS = ('beams', 'fov', 'range_min', 'range_max', 'noise_std')
@@ -160,6 +165,8 @@ class Scenario:
     seed : int
     follower : Mapping
         Overrides of ``FollowerParams`` fields (read-only mapping).
+    perception : str
+        One of :data:`~fusion_planner.core.simulation.perception.PERCEPTION_MODES`.
     description : str
     source : str or None
         The file it was loaded from.
@@ -185,6 +192,7 @@ class Scenario:
     scan: ScanConfig = field(default_factory=ScanConfig)
     seed: int = 0
     follower: types.MappingProxyType = field(default_factory=lambda: types.MappingProxyType({}))
+    perception: str = PERCEPTION_MODES[0]
     description: str = ''
     source: str = None
     map_path: str = None
@@ -366,6 +374,9 @@ def scenario_from_dict(doc, source=None, grid=None):
 
     follower = r.section(doc, 'follower')
     r.known_keys(follower, _follower_fields(), 'follower')
+    perception = r.string(doc, 'perception', default=PERCEPTION_MODES[0])
+    if perception not in PERCEPTION_MODES:
+        r.fail('perception', f'must be one of {", ".join(PERCEPTION_MODES)}, got {perception!r}')
 
     map_path = None
     if grid is None:   # the map is loaded last: schema errors are reported first
@@ -377,7 +388,7 @@ def scenario_from_dict(doc, source=None, grid=None):
         name=name, grid=grid, robot=robot, start=tuple(start), goal=tuple(goal),
         unknown_obstacles=unknown, moving_obstacles=moving, planner=planner, limits=limits,
         scan=scan, seed=seed, follower=types.MappingProxyType(dict(follower)),
-        description=description, source=None if source is None else str(source),
+        perception=perception, description=description, source=None if source is None else str(source),
         map_path=None if map_path is None else str(map_path))
     check_scenario(scenario, r)
     return scenario

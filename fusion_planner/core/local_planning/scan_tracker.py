@@ -1,0 +1,462 @@
+"""Moving obstacles tracked from laser scans alone.
+
+:class:`ScanTracker` turns a sequence of scans into the moving obstacles a
+controller avoids (:attr:`Observation.tracked`):
+
+1. **Map explanation and segmentation** (:mod:`scan_segments`): returns on the
+   known map are dropped, the rest cut into object candidates (centre,
+   radius) by beam adjacency and range jumps. Candidates wider than
+   ``max_object_radius`` are static structure and are not tracked.
+2. **Prediction**: every track is a constant-velocity Kalman filter (state
+   ``x, y, vx, vy``, white-noise acceleration of ``acceleration_std``),
+   predicted to the scan's time.
+3. **Association**: the squared Mahalanobis distance of each candidate to
+   each predicted track, gated at ``gate`` (chi-square, 2 degrees of
+   freedom) and at ``max_gate_distance``; one-to-one by the Hungarian method
+   (:func:`scipy.optimize.linear_sum_assignment`).
+4. **Update, birth, death**: matched tracks are corrected, except by a
+   partly hidden candidate (a nearer return beside it: its centre is
+   biased), which only keeps its track alive; unmatched whole candidates
+   start tentative tracks (at rest, velocity uncertain); a
+   tentative track that misses a scan, or any track unseen for
+   ``coast_time``, is dropped.
+5. **Report**: only tracks that move. A track is *moving* once it has been
+   matched ``confirm_hits`` times, has travelled ``min_travel`` from where
+   it was born, and its speed is at least ``min_speed``; it stays moving
+   until its speed falls below half of that, and must then travel
+   ``min_travel`` again. A static object's centre estimate shifts as the
+   view changes, so a track also stops moving while most of its returns
+   fall in cells hit without a break for ``static_age`` (:mod:`hit_ages`),
+   unless it has gone farther than ``max_object_radius`` from where it first
+   appeared (no change of view moves a centre that far; a slow person keeps
+   hitting the same cells for a while). Everything else (static unknown
+   obstacles, people standing still) stays scan points.
+
+Deterministic: the same scans give the same tracks (no randomness; ties in
+the assignment are broken by index). Vectorised over beams, candidates and
+tracks: one update is a fixed number of numpy calls.
+
+Bad scans are refused with a reason and leave the tracks as they were
+(:class:`ScanVerdict`): mismatched or empty arrays, a non-finite pose or
+time, a scan not newer than the last one. NaN and infinite ranges are no
+returns.
+
+Frames and units: map frame, metres, seconds, radians.
+
+References: Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with
+Applications to Tracking and Navigation*, Wiley 2001 (ch. 6, the discretised
+white-noise acceleration model).
+
+Examples
+--------
+>>> import numpy as np
+>>> from fusion_planner.core.grid import GridMap
+>>> from fusion_planner.core.simulation.world import ray_circle_distances
+>>> tracker = ScanTracker(GridMap(np.zeros((100, 100), bool), resolution=0.1))
+>>> angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+>>> beams = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+>>> origin = np.array([1.0, 5.0, 0.0])
+>>> for k in range(15):            # a walker 4 m ahead crossing at 1 m/s
+...     centre = np.array([[5.0, 3.5 + 0.1 * k]])
+...     ranges = ray_circle_distances(origin[:2], beams, centre, np.array([0.3]))
+...     verdict = tracker.update(angles, ranges, origin, time=0.1 * k)
+>>> report = tracker.report()
+>>> report.tracked.shape, bool(abs(report.tracked[0, 3] - 1.0) < 0.2)
+((1, 5), True)
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.local_planning.hit_ages import HitAges
+from fusion_planner.core.local_planning.scan_segments import map_explained_mask, segment_scan
+
+#: A candidate with at least this fraction of its returns in old cells stays put.
+STATIC_FRACTION = 0.5
+#: Cost of a forbidden (gated out) pairing in the assignment; any gated-in
+#: cost is below ``gate``.
+FORBIDDEN_COST = 1e9
+
+
+@dataclass(frozen=True)
+class TrackerParams:
+    """Everything that tunes :class:`ScanTracker`.
+
+    Attributes
+    ----------
+    map_tolerance : float
+        A return within this distance [m] of an occupied map cell (at least
+        1.5 cells) is explained by the map.
+    cluster_gap : float
+        Adjacent returns farther apart [m] belong to different objects.
+    min_points : int
+        Fewer returns than this are not an object.
+    max_object_radius : float
+        Candidates with a larger radius [m] are static structure.
+    measurement_std : float
+        Standard deviation [m] of a candidate's centre.
+    acceleration_std : float
+        Standard deviation [m/s^2] of the white-noise acceleration.
+    initial_speed_std : float
+        Standard deviation [m/s] of a new track's velocity (it starts at
+        rest).
+    gate : float
+        Largest squared Mahalanobis distance of an association (13.8: 99.9 %
+        of a 2-D Gaussian).
+    max_gate_distance : float
+        Largest distance [m] of an association, whatever the covariance.
+    confirm_hits : int
+        Matches before a track may be reported.
+    coast_time : float
+        A track unseen for this long [s] is dropped.
+    min_speed : float
+        Slowest speed [m/s] of a moving track.
+    min_travel : float
+        Distance [m] from its birth a track must have travelled to be moving.
+    radius_smoothing : float
+        Weight in (0, 1] of a new radius in a track's running mean.
+    static_age : float
+        A candidate with most of its returns in cells hit without a break for
+        this long [s] stays put: its track is not moving (unless it has gone
+        farther than ``max_object_radius`` from where it first appeared).
+    hit_break : float
+        A cell not hit for longer than this [s] starts a new run of hits.
+    max_tracks : int
+        Cap on live tracks; the candidates nearest the laser are kept.
+    """
+
+    map_tolerance: float = 0.15
+    cluster_gap: float = 0.3
+    min_points: int = 2
+    max_object_radius: float = 0.6
+    measurement_std: float = 0.05
+    acceleration_std: float = 1.0
+    initial_speed_std: float = 1.5
+    gate: float = 13.8
+    max_gate_distance: float = 1.0
+    confirm_hits: int = 3
+    coast_time: float = 0.6
+    min_speed: float = 0.1
+    min_travel: float = 0.25
+    radius_smoothing: float = 0.3
+    static_age: float = 1.0
+    hit_break: float = 0.3
+    max_tracks: int = 100
+
+    def __post_init__(self):
+        for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
+                     'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
+                     'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
+            _check_real(name, getattr(self, name), zero_ok=False)
+        for name in ('min_speed', 'min_travel'):
+            _check_real(name, getattr(self, name), zero_ok=True)
+        for name in ('min_points', 'confirm_hits', 'max_tracks'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InvalidInput(
+                    f'TrackerParams.{name} must be a positive integer, got {value!r}')
+
+
+def _check_real(name, value, zero_ok):
+    """Raise InvalidInput unless ``value`` is a finite real > 0 (>= 0 with ``zero_ok``)."""
+    ok = (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+          and (value >= 0 if zero_ok else value > 0))
+    if not ok:
+        relation = '>=' if zero_ok else '>'
+        raise InvalidInput(f'TrackerParams.{name} must be a finite number {relation} 0, '
+                           f'got {value!r}')
+
+
+@dataclass(frozen=True)
+class ScanVerdict:
+    """What :meth:`ScanTracker.update` made of a scan.
+
+    Attributes
+    ----------
+    accepted : bool
+        False: the scan was refused and the tracks are unchanged.
+    reason : str
+        Why it was refused, or a note on an accepted scan ('' when none).
+    """
+
+    accepted: bool
+    reason: str = ''
+
+
+@dataclass(frozen=True)
+class TrackReport:
+    """The moving tracks at one instant.
+
+    Attributes
+    ----------
+    ids : ndarray, int64, shape (K,)
+        Track identities (stable while a track lives, never reused).
+    states : ndarray, float64, shape (K, 4)
+        ``x, y, vx, vy`` [m, m, m/s, m/s], map frame.
+    covariances : ndarray, float64, shape (K, 4, 4)
+        Their covariances (same units, squared).
+    radii : ndarray, float64, shape (K,)
+        [m]: a running mean of the radii of the whole (not partly hidden)
+        candidates matched to each track.
+    """
+
+    ids: np.ndarray
+    states: np.ndarray
+    covariances: np.ndarray
+    radii: np.ndarray
+
+    @property
+    def tracked(self):
+        """``(K, 5)`` rows ``x, y, vx, vy, radius``, as :attr:`Observation.tracked`."""
+        return np.column_stack([self.states, self.radii]).reshape(-1, 5)
+
+
+class ScanTracker:
+    """Tracks moving obstacles through laser scans (see the module notes).
+
+    Parameters
+    ----------
+    grid : GridMap
+        The known map; returns on it are not objects.
+    params : TrackerParams, optional
+
+    Attributes
+    ----------
+    time : float or None
+        Time [s] of the last accepted scan.
+    """
+
+    def __init__(self, grid, params=None):
+        self.grid = grid
+        self.params = params or TrackerParams()
+        self._explained = map_explained_mask(grid, self.params.map_tolerance)
+        self._ages = HitAges(grid, self.params.hit_break)
+        self._measurement_cov = np.eye(2) * self.params.measurement_std ** 2
+        self.time = None
+        self._next_id = 0
+        self._ids = np.zeros(0, np.int64)
+        self._x = np.zeros((0, 4))
+        self._p = np.zeros((0, 4, 4))
+        self._radius = np.zeros(0)
+        self._hits = np.zeros(0, np.int64)
+        self._last_seen = np.zeros(0)
+        self._birth = np.zeros((0, 2))     # where each track must travel min_travel from [m]
+        self._origin = np.zeros((0, 2))    # where each track first appeared [m]
+        self._moving = np.zeros(0, bool)
+
+    def update(self, angles, ranges, origin, time):
+        """Take in one scan.
+
+        Parameters
+        ----------
+        angles : array_like, shape (n,)
+            Beam angles [rad], laser frame, increasing.
+        ranges : array_like, shape (n,)
+            Ranges [m]; NaN, ``inf`` and non-positive values are no return.
+        origin : array_like, shape (3,)
+            Laser pose ``(x, y, yaw)`` in the map frame when the scan was
+            taken.
+        time : float
+            Scan time [s].
+
+        Returns
+        -------
+        ScanVerdict
+        """
+        scan = _checked_scan(angles, ranges, origin, time)
+        if isinstance(scan, ScanVerdict):
+            return scan
+        angles, ranges, origin = scan
+        if self.time is not None and not time > self.time:
+            return ScanVerdict(False, f'scan at {time:.3f} s is not newer than the last one '
+                                      f'({self.time:.3f} s)')
+        dt = 0.0 if self.time is None else time - self.time
+        self.time = float(time)
+        self._predict(dt)
+        p = self.params
+        segments = segment_scan(angles, ranges, origin, self.grid, self._explained,
+                                p.cluster_gap, p.min_points)
+        staying = self._staying(segments)
+        objects = segments.radii <= p.max_object_radius
+        centers, radii = segments.centers[objects], segments.radii[objects]
+        occluded, staying = segments.occluded[objects], staying[objects]
+        track_of = self._associate(centers)
+        matched = track_of >= 0
+        whole = matched & ~occluded
+        self._correct(track_of[whole], centers[whole], radii[whole])
+        # a partly hidden object's centre is biased: its track coasts, but lives on
+        self._last_seen[track_of[matched & occluded]] = self.time
+        # an object whose returns stay in the same cells is not moving, whatever
+        # its centre estimate does as the view changes; it must travel again
+        still = track_of[matched & staying]
+        still = still[np.hypot(*(self._x[still, 0:2] - self._origin[still]).T)
+                      <= p.max_object_radius]
+        self._moving[still] = False
+        self._birth[still] = self._x[still, 0:2]
+        self._drop_lost()
+        born = ~matched & ~occluded
+        self._give_birth(centers[born], radii[born], origin[:2])
+        self._mark_moving()
+        note = '' if np.isfinite(ranges).any() else 'no returns'
+        return ScanVerdict(True, note)
+
+    def report(self, time=None):
+        """The moving tracks, optionally predicted ahead.
+
+        Parameters
+        ----------
+        time : float, optional
+            Predict positions (constant velocity) to this time [s]; default
+            the last scan's time.
+
+        Returns
+        -------
+        TrackReport
+        """
+        keep = self._moving
+        states = self._x[keep].copy()
+        if time is not None and self.time is not None and math.isfinite(time):
+            states[:, 0:2] += states[:, 2:4] * (time - self.time)
+        return TrackReport(ids=self._ids[keep].copy(), states=states,
+                           covariances=self._p[keep].copy(), radii=self._radius[keep].copy())
+
+    @property
+    def live_tracks(self):
+        """Number of tracks alive, moving or not (the work of an update)."""
+        return len(self._ids)
+
+    def reset(self):
+        """Forget every track (e.g. after a clock jump)."""
+        self.__init__(self.grid, self.params)
+
+    # -- filter steps -------------------------------------------------------------
+
+    def _staying(self, segments):
+        """Whether most of each candidate's returns fall in cells hit for ``static_age``."""
+        if not len(segments.unexplained):
+            return np.zeros(0, bool)
+        old = self._ages.update(segments.unexplained, self.time) >= self.params.static_age
+        labelled = segments.labels >= 0
+        old_count = np.bincount(segments.labels[labelled], weights=old[labelled],
+                                minlength=len(segments.counts))
+        return old_count >= STATIC_FRACTION * segments.counts
+
+    def _predict(self, dt):
+        if dt <= 0 or not len(self._x):
+            return
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
+        q = self.params.acceleration_std ** 2
+        block = q * np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
+        noise = np.zeros((4, 4))
+        noise[np.ix_([0, 2], [0, 2])] = block
+        noise[np.ix_([1, 3], [1, 3])] = block
+        self._x = self._x @ f.T
+        self._p = f @ self._p @ f.T + noise
+
+    def _associate(self, centers):
+        """Track index of each candidate (-1: none), by gated Hungarian assignment."""
+        track_of = np.full(len(centers), -1, np.int64)
+        if not len(centers) or not len(self._x):
+            return track_of
+        innovation = centers[None, :, :] - self._x[:, None, 0:2]            # (K, C, 2)
+        s = self._p[:, 0:2, 0:2] + self._measurement_cov                     # (K, 2, 2)
+        s_inv = np.linalg.inv(s)
+        mahalanobis = np.einsum('kci,kij,kcj->kc', innovation, s_inv, innovation)
+        distance = np.hypot(innovation[..., 0], innovation[..., 1])
+        allowed = (mahalanobis <= self.params.gate) & (distance <= self.params.max_gate_distance)
+        cost = np.where(allowed, mahalanobis, FORBIDDEN_COST)
+        rows, cols = linear_sum_assignment(cost)
+        ok = allowed[rows, cols]
+        track_of[cols[ok]] = rows[ok]
+        return track_of
+
+    def _correct(self, tracks, centers, radii):
+        if not len(tracks):
+            return
+        x, p = self._x[tracks], self._p[tracks]
+        s = p[:, 0:2, 0:2] + self._measurement_cov
+        gain = p[:, :, 0:2] @ np.linalg.inv(s)                                 # (m, 4, 2)
+        x = x + np.einsum('mij,mj->mi', gain, centers - x[:, 0:2])
+        p = p - gain @ p[:, 0:2, :]
+        self._x[tracks] = x
+        self._p[tracks] = 0.5 * (p + np.swapaxes(p, 1, 2))
+        weight = self.params.radius_smoothing
+        self._radius[tracks] += weight * (radii - self._radius[tracks])
+        self._hits[tracks] += 1
+        self._last_seen[tracks] = self.time
+
+    def _drop_lost(self):
+        unseen = self._last_seen < self.time
+        tentative = self._hits < self.params.confirm_hits
+        lost = (unseen & tentative) | (self.time - self._last_seen > self.params.coast_time)
+        if lost.any():
+            self._keep(~lost)
+
+    def _give_birth(self, centers, radii, laser):
+        room = self.params.max_tracks - len(self._x)
+        if room <= 0 or not len(centers):
+            return
+        if len(centers) > room:
+            nearest = np.argsort(np.hypot(*(centers - laser).T), kind='stable')[:room]
+            centers, radii = centers[np.sort(nearest)], radii[np.sort(nearest)]
+        n = len(centers)
+        x = np.zeros((n, 4))
+        x[:, 0:2] = centers
+        p = np.zeros((n, 4, 4))
+        p[:, 0, 0] = p[:, 1, 1] = self.params.measurement_std ** 2
+        p[:, 2, 2] = p[:, 3, 3] = self.params.initial_speed_std ** 2
+        self._ids = np.concatenate([self._ids, self._next_id + np.arange(n)])
+        self._next_id += n
+        self._x = np.concatenate([self._x, x])
+        self._p = np.concatenate([self._p, p])
+        self._radius = np.concatenate([self._radius, radii])
+        self._hits = np.concatenate([self._hits, np.ones(n, np.int64)])
+        self._last_seen = np.concatenate([self._last_seen, np.full(n, self.time)])
+        self._birth = np.concatenate([self._birth, centers])
+        self._origin = np.concatenate([self._origin, centers])
+        self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
+
+    def _mark_moving(self):
+        p = self.params
+        speed = np.hypot(self._x[:, 2], self._x[:, 3])
+        travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
+        starts = ((self._hits >= p.confirm_hits) & (travelled >= p.min_travel)
+                  & (speed >= p.min_speed))
+        stops = self._moving & (speed < 0.5 * p.min_speed)
+        # a stopped track must travel min_travel again from where it stopped
+        self._birth[stops] = self._x[stops, 0:2]
+        self._moving = (self._moving & ~stops) | starts
+
+    def _keep(self, mask):
+        self._ids, self._x, self._p = self._ids[mask], self._x[mask], self._p[mask]
+        self._radius, self._hits = self._radius[mask], self._hits[mask]
+        self._last_seen, self._birth = self._last_seen[mask], self._birth[mask]
+        self._origin = self._origin[mask]
+        self._moving = self._moving[mask]
+
+
+def _checked_scan(angles, ranges, origin, time):
+    """``(angles, ranges, origin)`` as float arrays, or the ScanVerdict refusing them."""
+    try:
+        angles = np.asarray(angles, dtype=float).reshape(-1)
+        ranges = np.asarray(ranges, dtype=float).reshape(-1)
+        origin = np.asarray(origin, dtype=float).reshape(-1)
+        time = float(time)
+    except (TypeError, ValueError) as err:
+        return ScanVerdict(False, f'scan is not numeric: {err}')
+    if not len(angles) or len(angles) != len(ranges):
+        return ScanVerdict(False, f'scan needs as many ranges as angles (>= 1), got '
+                                  f'{len(ranges)} ranges and {len(angles)} angles')
+    if not np.all(np.isfinite(angles)):
+        return ScanVerdict(False, 'scan angles must be finite')
+    if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+        return ScanVerdict(False, f'laser pose must be three finite numbers, got {origin.tolist()}')
+    if not math.isfinite(time):
+        return ScanVerdict(False, f'scan time must be finite, got {time!r}')
+    return angles, ranges, origin
+

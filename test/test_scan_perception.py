@@ -1,0 +1,123 @@
+"""Scan perception in the closed loop: dynamic families, hidden people, contacts at rest."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from fusion_planner.bench.dynamic import contacts_at_rest
+from fusion_planner.bench.tracker import TrackingStats
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.local_planning.hit_ages import HitAges
+from fusion_planner.core.local_planning.scan_tracker import TrackReport
+from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES
+from fusion_planner.core.simulation.families import FAMILIES, family_scenario
+from fusion_planner.core.simulation.episodes import run_episode
+from fusion_planner.core.simulation.perception import (
+    IdealPerception, ScanPerception, make_perception)
+from fusion_planner.core.simulation.world import World
+
+
+@pytest.mark.parametrize('family', sorted(DYNAMIC_FAMILIES))
+def test_families_are_valid_reproducible_and_differ_by_seed(family):
+    make = DYNAMIC_FAMILIES[family]
+    a, b, c = make(5), make(5), make(6)
+    assert a.name == f'{family}-5' and a.moving_obstacles == b.moving_obstacles
+    assert a.moving_obstacles != c.moving_obstacles or a.goal != c.goal
+    assert a.perception == 'scan'
+    assert max(m.top_speed() for m in a.moving_obstacles) >= 0.3
+    assert family in FAMILIES and family_scenario(family, 5).moving_obstacles == a.moving_obstacles
+    assert a.family == family and a.solvable is True
+
+
+def test_fast_obstacles_are_as_fast_as_the_robot():
+    for seed in range(5):
+        scenario = DYNAMIC_FAMILIES['fast-obstacle'](seed)
+        assert scenario.moving_obstacles[0].top_speed() == scenario.robot.max_speed
+
+
+def test_the_person_round_the_blind_corner_is_unseen_by_scan_perception_only():
+    scenario = DYNAMIC_FAMILIES['blind-corner'](3)
+    world = World(scenario.grid, scenario.robot, scenario.start, (), scenario.moving_obstacles,
+                  scenario.scan, seed=0)
+    scan_perception, ideal = ScanPerception(scenario.grid), IdealPerception()
+    for _ in range(5):
+        scan = world.scan()
+        hidden = scan_perception.tracked(world, scan)
+        oracle = ideal.tracked(world, scan)
+        world.step(0.0, 0.0, scenario.limits.dt)
+    assert len(hidden) == 0 and len(oracle) == 1
+
+
+@pytest.mark.parametrize('family, seed', [('blind-corner', 3), ('fast-obstacle', 4),
+                                          ('crossing', 7)])
+def test_closed_loop_with_scan_perception_only(family, seed):
+    scenario = DYNAMIC_FAMILIES[family](seed)
+    assert scenario.perception == 'scan'
+    result = run_episode(scenario, 'fusion', record=True)
+    assert result.perception == 'scan'
+    assert result.reached, result.failure
+    assert result.collisions == 0
+    # the people did come close: the run was an encounter, not a stroll
+    gaps = np.hypot(*(result.obstacle_tracks - result.trajectory[:, None, 0:2])
+                    .transpose(2, 0, 1)).min()
+    assert gaps < 2.0
+
+
+def test_unknown_perception_is_refused():
+    scenario = DYNAMIC_FAMILIES['crossing'](1)
+    with pytest.raises(InvalidInput, match='perception'):
+        run_episode(scenario, 'fusion', perception='telepathy')
+    with pytest.raises(InvalidInput, match='perception'):
+        make_perception('oracle', scenario.grid)
+
+
+def test_hit_ages_grow_on_a_wall_and_stay_young_on_a_walker():
+    scenario = DYNAMIC_FAMILIES['crossing'](1)
+    ages = HitAges(scenario.grid, break_s=0.3)
+    for k in range(20):
+        t = 0.1 * k
+        wall_age = ages.update(np.array([[5.05, 5.05]]), t)
+        walker_age = ages.update(np.array([[8.05, 1.0 + 0.5 * t]]), t)
+    assert wall_age[0] == pytest.approx(1.9)
+    assert walker_age[0] < 0.3
+
+
+def test_contacts_at_rest_are_told_apart_from_contacts_while_driving():
+    scenario = DYNAMIC_FAMILIES['crossing'](1)
+    scenario = dataclasses.replace(scenario, moving_obstacles=scenario.moving_obstacles[:1])
+    radius = scenario.moving_obstacles[0].radius + scenario.robot.radius
+    poses = np.zeros((12, 3))
+    # at rest, driving on (+x), backing away (-x) from a person ahead, then
+    # driving across (+x, a little away) in front of a person coming from the side (+y)
+    poses[:, 0] = [0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.3, 0.2, 0.1, 0.1, 0.2, 0.3]
+    poses[:, 1] = [0.0] * 10 + [-0.02, -0.04]
+    people = np.array([[5.0, 0.0], [radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
+                       [0.2 + radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
+                       [5.0, 0.0], [0.1 + radius - 0.01, 0.0], [5.0, 0.0],
+                       [0.2, radius - 0.03], [5.0, 0.0]])[:, None, :]
+
+    @dataclasses.dataclass
+    class Recorded:
+        trajectory: np.ndarray
+        obstacle_tracks: np.ndarray
+
+    assert contacts_at_rest(scenario, Recorded(poses, people)) == 2
+
+
+def test_tracking_stats_pair_tracks_with_the_truth_and_time_the_delay():
+    stats = TrackingStats()
+    truth = np.array([[1.0, 0.0, 1.0, 0.0, 0.3]])
+    seen = np.array([[0.7, 0.0]])
+    empty = TrackReport(np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros((0, 4, 4)), np.zeros(0))
+    stats.observe(0.0, empty, truth, seen)
+    good = TrackReport(np.array([4]), np.array([[1.1, 0.0, 0.9, 0.0]]), np.zeros((1, 4, 4)),
+                       np.array([0.3]))
+    stats.observe(0.5, good, truth, seen)
+    ghost = TrackReport(np.array([9]), np.array([[5.0, 5.0, 0.5, 0.0]]), np.zeros((1, 4, 4)),
+                        np.array([0.3]))
+    stats.observe(0.6, ghost, truth, seen)
+    stats.finish()
+    assert stats.delays == [0.5]
+    assert stats.velocity_errors == [pytest.approx(0.1)]
+    assert stats.false_ids == {9} and stats.unusable_sightings == 0

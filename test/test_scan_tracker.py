@@ -1,0 +1,206 @@
+"""The scan tracker on synthetic scans: crossings, passings, occlusion, clutter, bad scans."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.grid import GridMap
+from fusion_planner.core.local_planning.scan_tracker import ScanTracker, TrackerParams
+from fusion_planner.core.simulation.world import (
+    Circle, RobotSpec, ScanConfig, ray_circle_distances, World)
+
+BEAMS = 720
+ANGLES = ScanConfig(beams=BEAMS).angles()
+DIRECTIONS = np.stack([np.cos(ANGLES), np.sin(ANGLES)], axis=1)
+DT = 0.1
+RADIUS = 0.3
+
+
+def open_map(size_cells=200, pillar=None):
+    """A walled square map of 0.1 m cells, optionally with a square pillar (row, col slices)."""
+    occupied = np.zeros((size_cells, size_cells), bool)
+    occupied[0, :] = occupied[-1, :] = occupied[:, 0] = occupied[:, -1] = True
+    if pillar is not None:
+        occupied[pillar] = True
+    return GridMap(occupied, resolution=0.1)
+
+
+def scan_of(grid, origin, centres, radius=RADIUS):
+    """Ranges from a laser at ``origin`` (yaw 0) to the map and some circles."""
+    world = World(grid, RobotSpec(radius=0.1), origin, scan_config=ScanConfig(beams=BEAMS,
+                                                                              range_max=12.0))
+    ranges = world.scan().ranges
+    if len(centres):
+        circles = ray_circle_distances(np.asarray(origin[:2], float), DIRECTIONS,
+                                       np.asarray(centres, float), np.full(len(centres), radius))
+        ranges = np.minimum(ranges, circles)
+    return ranges
+
+
+def run(tracker, grid, origin, positions):
+    """Feed scans of walkers at ``positions`` (T, K, 2), one every DT; reports per step."""
+    reports = []
+    for k, centres in enumerate(positions):
+        verdict = tracker.update(ANGLES, scan_of(grid, origin, centres), origin, k * DT)
+        assert verdict.accepted, verdict.reason
+        reports.append(tracker.report())
+    return reports
+
+
+def test_walker_crossing_is_tracked_with_its_velocity():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(40) * DT
+    walker = np.stack([np.full_like(t, 8.0), 7.0 + 1.0 * t], axis=1)[:, None, :]
+    reports = run(ScanTracker(grid), grid, origin, walker)
+    assert all(len(r.ids) == 0 for r in reports[:2])        # no velocity from one scan
+    first_report = next(k for k, r in enumerate(reports) if len(r.ids))
+    assert first_report * DT <= 0.6
+    for k, report in enumerate(reports[first_report + 5:], start=first_report + 5):
+        assert report.ids.tolist() == [reports[first_report].ids[0]]
+        x, y, vx, vy = report.states[0]
+        assert math.hypot(x - walker[k, 0, 0], y - walker[k, 0, 1]) < 0.15
+        assert math.hypot(vx - 0.0, vy - 1.0) < 0.2
+        assert 0.2 <= report.radii[0] <= 0.45
+        assert np.all(np.linalg.eigvalsh(report.covariances[0]) > 0)
+
+
+def test_two_walkers_passing_each_other_keep_their_tracks():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(60) * DT
+    up = np.stack([np.full_like(t, 7.6), 7.0 + 0.9 * t], axis=1)
+    down = np.stack([np.full_like(t, 8.6), 13.0 - 0.9 * t], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, np.stack([up, down], axis=1))
+    final = reports[-1]
+    assert len(final.ids) == 2
+    by_id = {}
+    for report in reports[10:]:
+        for track_id, state in zip(report.ids, report.states):
+            by_id.setdefault(int(track_id), []).append(state)
+    assert len(by_id) == 2, 'each walker keeps one track through the passing'
+    signs = sorted(np.sign(np.mean([s[3] for s in states])) for states in by_id.values())
+    assert signs == [-1.0, 1.0]
+    for states in by_id.values():
+        vy = np.array([s[3] for s in states])
+        assert np.all(np.abs(np.abs(vy) - 0.9) < 0.3)
+
+
+def test_walker_hidden_by_a_pillar_is_tracked_again_when_it_reappears():
+    # pillar 0.4 m wide at x = 6.0..6.4, y = 9.8..10.2 between the laser and the walker's line
+    grid = open_map(pillar=(slice(98, 102), slice(60, 64)))
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(50) * DT
+    walker = np.stack([np.full_like(t, 9.0), 8.0 + 1.0 * t], axis=1)[:, None, :]
+    tracker = ScanTracker(grid)
+    reports = run(tracker, grid, origin, walker)
+    hidden = [k for k in range(len(t))
+              if not np.isfinite(scan_of(grid, origin, walker[k])[BEAMS // 2]) or
+              scan_of(grid, origin, walker[k])[BEAMS // 2] < 4.0]
+    assert hidden, 'the pillar must hide the walker for a while'
+    last = reports[-1]
+    assert len(last.ids) == 1
+    assert math.hypot(*(last.states[0, :2] - walker[-1, 0])) < 0.15
+    assert abs(last.states[0, 3] - 1.0) < 0.2
+    # while hidden, it coasts on at its velocity instead of vanishing
+    during = reports[hidden[len(hidden) // 2]]
+    assert len(during.ids) == 1
+    assert during.states[0, 1] == pytest.approx(walker[hidden[len(hidden) // 2], 0, 1], abs=0.3)
+
+
+def test_static_unknown_obstacles_stay_scan_points_while_the_robot_drives():
+    grid = open_map()
+    circles = [Circle((8.0, 8.5), 0.3), Circle((9.0, 12.0), 0.25), Circle((12.0, 10.0), 0.4)]
+    tracker = ScanTracker(grid)
+    for k in range(80):
+        origin = np.array([2.0 + 0.1 * k, 10.0, 0.0])
+        world = World(grid, RobotSpec(radius=0.1), origin, unknown_obstacles=circles,
+                      scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
+        assert tracker.update(ANGLES, world.scan().ranges, origin, k * DT).accepted
+        assert len(tracker.report().ids) == 0
+
+
+def test_walls_of_the_known_map_are_not_objects():
+    grid = open_map(pillar=(slice(80, 120), slice(120, 124)))
+    tracker = ScanTracker(grid)
+    origin = np.array([5.0, 10.0, 0.3])
+    for k in range(20):
+        assert tracker.update(ANGLES, scan_of(grid, origin, []), origin, k * DT).accepted
+    assert len(tracker._x) == 0
+
+
+def test_the_same_scans_give_the_same_tracks():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(30) * DT
+    walkers = np.stack([np.stack([8.0 - 0.5 * t, 7.0 + 0.8 * t], axis=1),
+                        np.stack([6.0 + 0.3 * t, 13.0 - 0.6 * t], axis=1)], axis=1)
+    a = run(ScanTracker(grid), grid, origin, walkers)[-1]
+    b = run(ScanTracker(grid), grid, origin, walkers)[-1]
+    assert np.array_equal(a.ids, b.ids) and np.array_equal(a.states, b.states)
+    assert np.array_equal(a.covariances, b.covariances)
+
+
+@pytest.mark.parametrize('bad, reason', [
+    (dict(ranges=np.full(BEAMS - 1, 3.0)), 'as many ranges'),
+    (dict(ranges=np.zeros(0), angles=np.zeros(0)), 'as many ranges'),
+    (dict(angles=np.full(BEAMS, np.nan)), 'angles must be finite'),
+    (dict(origin=[np.nan, 0.0, 0.0]), 'laser pose'),
+    (dict(origin=[1.0, 2.0]), 'laser pose'),
+    (dict(time=math.inf), 'time must be finite'),
+    (dict(time=0.5), 'not newer'),
+    (dict(time=1.0), 'not newer'),
+    (dict(ranges='abc'), 'not numeric'),
+])
+def test_bad_scans_are_refused_and_leave_the_tracks_alone(bad, reason):
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    tracker = ScanTracker(grid)
+    t = np.arange(11) * DT
+    run(tracker, grid, origin, np.stack([np.full_like(t, 8.0), 8.0 + t], axis=1)[:, None, :])
+    before = tracker.report()
+    scan = dict(angles=ANGLES, ranges=np.full(BEAMS, 3.0), origin=origin, time=1.0)
+    scan.update(bad)
+    verdict = tracker.update(**scan)
+    assert not verdict.accepted and reason in verdict.reason
+    after = tracker.report()
+    assert np.array_equal(before.states, after.states) and np.array_equal(before.ids, after.ids)
+
+
+def test_nan_and_infinite_ranges_are_no_returns():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    tracker = ScanTracker(grid)
+    t = np.arange(12) * DT
+    walker = np.stack([np.full_like(t, 8.0), 8.0 + t], axis=1)[:, None, :]
+    run(tracker, grid, origin, walker)
+    ranges = scan_of(grid, origin, walker[-1] + [0.0, 0.1])
+    ranges[::3] = np.nan
+    ranges[1::7] = -np.inf
+    assert tracker.update(ANGLES, ranges, origin, 1.2).accepted
+    assert len(tracker.report().ids) == 1
+    verdict = tracker.update(ANGLES, np.full(BEAMS, np.inf), origin, 1.3)
+    assert verdict.accepted and verdict.reason == 'no returns'
+    assert len(tracker.report().ids) == 1               # coasting
+    for k in range(8):
+        tracker.update(ANGLES, np.full(BEAMS, np.nan), origin, 1.4 + k * DT)
+    assert len(tracker.report().ids) == 0               # lost after coast_time
+
+
+def test_report_predicts_ahead_along_the_velocity():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    tracker = ScanTracker(grid)
+    t = np.arange(15) * DT
+    run(tracker, grid, origin, np.stack([np.full_like(t, 8.0), 8.0 + t], axis=1)[:, None, :])
+    now, later = tracker.report(), tracker.report(time=tracker.time + 0.5)
+    assert later.states[0, 1] - now.states[0, 1] == pytest.approx(0.5 * now.states[0, 3])
+
+
+def test_bad_parameters_are_refused():
+    with pytest.raises(InvalidInput, match='gate'):
+        TrackerParams(gate=-1.0)
+    with pytest.raises(InvalidInput, match='confirm_hits'):
+        TrackerParams(confirm_hits=0)
