@@ -1,7 +1,6 @@
 """Tests of the potential fields (fusion_planner.core.local_planning.apf): eqs. (9)-(18) as properties."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -249,18 +248,15 @@ def test_adaptive_step_refuses_nan():
 
 # -- cost ------------------------------------------------------------------------------------
 
-def test_a_720_beam_scan_is_one_cheap_pass():
+def test_a_720_beam_scan_gives_finite_forces():
+    # Its speed is measured by `fusion-planner bench local`, not here.
     rng = np.random.default_rng(1)
     angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
     ranges = rng.uniform(0.3, 3.0, 720)
     scan = np.c_[ranges * np.cos(angles), ranges * np.sin(angles)]
     velocities = np.zeros_like(scan)
-    start = time.perf_counter()
-    for _ in range(100):
-        improved_repulsive_force(ORIGIN, [4.0, 1.0], scan, PARAMS)
-        velocity_repulsion(ORIGIN, [0.5, 0.0], scan, velocities, PARAMS)
-    per_call = (time.perf_counter() - start) / 200
-    assert per_call < 2e-3, f'{per_call * 1e3:.3f} ms per field evaluation'
+    assert np.all(np.isfinite(improved_repulsive_force(ORIGIN, [4.0, 1.0], scan, PARAMS)))
+    assert np.all(np.isfinite(velocity_repulsion(ORIGIN, [0.5, 0.0], scan, velocities, PARAMS)))
 
 
 def test_named_constants_are_sane():

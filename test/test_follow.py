@@ -9,7 +9,6 @@ does not depend on the simulation world module. The evasion layer
 """
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -552,7 +551,8 @@ def test_thinning_keeps_one_point_per_square():
     assert len(np.unique(cells, axis=0)) == len(thinned)
 
 
-def test_compute_is_fast_with_a_720_beam_scan_and_20_people():
+def test_compute_takes_a_720_beam_scan_and_20_people():
+    # Its speed is measured by `fusion-planner bench local`, not here.
     rng = np.random.default_rng(3)
     angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
     ranges = rng.uniform(0.5, 4.0, 720)
@@ -564,12 +564,11 @@ def test_compute_is_fast_with_a_720_beam_scan_and_20_people():
     controller.set_path(keys, keys)
     observations = [Observation(np.array([5.0, 5.0, 0.3]), np.array([0.5, 0.1]), scan, tracked,
                                 0.05 * i) for i in range(100)]
-    controller.compute(observations[0])
-    start = time.perf_counter()
-    for obs in observations[1:]:
-        controller.compute(obs)
-    per_step = (time.perf_counter() - start) / (len(observations) - 1)
-    assert per_step < 5e-3, f'{per_step * 1e3:.2f} ms per compute()'
+    params = FollowerParams()
+    for obs in observations:
+        command = controller.compute(obs)
+        assert math.isfinite(command.v) and abs(command.v) <= params.max_speed
+        assert math.isfinite(command.omega) and abs(command.omega) <= params.max_omega
 
 
 def test_an_absurd_measured_reverse_speed_never_gives_a_faster_command():
