@@ -369,20 +369,20 @@ def no_evasion(monkeypatch):
 def test_a_person_walking_into_a_trapped_robot_is_evaded(lateral, request):
     """Inside the U of Figure 5b, pinned by the field against its bottom, a person walks in.
 
-    The field alone keeps the robot in the local minimum until the person
+    The improved field straight to the goal (no route to shape it) alone keeps the robot in the local minimum until the person
     (who ignores the robot) walks into it; the evasion layer gets it out of
     the way in time.
     """
     p = params()
     start = (5.4, lateral, 0.0)
     walker = Mover(start=(2.0, lateral), velocity=(0.38, 0.0), radius=0.3)
-    run = simulate(make_controller('fusion', p), start, GOAL_U, SCENE_U, movers=[walker],
+    run = simulate(make_controller('apf', p), start, GOAL_U, SCENE_U, movers=[walker],
                    duration=25.0, block=True)
     assert run.min_mover_clearance > 0.1
     assert run.min_static_clearance > 0 and run.blocked_steps == 0
     assert_limits(run, p)
     request.getfixturevalue('no_evasion')
-    field_only = simulate(make_controller('fusion', p), start, GOAL_U, SCENE_U, movers=[walker],
+    field_only = simulate(make_controller('apf', p), start, GOAL_U, SCENE_U, movers=[walker],
                           duration=25.0, block=True)
     assert field_only.min_mover_clearance < 0           # the contact the evasion prevents
 

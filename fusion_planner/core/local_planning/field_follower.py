@@ -48,6 +48,8 @@ from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, B
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, points_off_circles, segments_clear, thin_points)
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
+from fusion_planner.core.local_planning.route import Route
+from fusion_planner.core.local_planning.speed_policy import braking_path_gap, turn_cap
 
 LOGGER = logging.getLogger(__name__)
 
@@ -78,6 +80,25 @@ ROLLOUT_MAX_STEP = 0.2
 #: A force shorter than this has no direction: the robot stops (a minimum).
 FORCE_EPS = 1e-9
 
+#: A static point closer to the route than this fraction of the robot radius
+#: blocks it (the field pushes the robot off the route around it); a point
+#: farther away is beside the route and only pushes across it. The planner
+#: checks clearance at cell resolution, so a route may pass a wall's face a
+#: little closer than the radius: that wall is still beside the route.
+BLOCKING_FRACTION = 0.5
+
+#: Clearance [m] from the points beside the route that the carrot keeps where
+#: there is room; in a passage narrower than twice this (plus the robot) the
+#: carrot is centred.
+KEEP_CLEARANCE = 0.15
+
+#: Shortest carrot distance [m] along the route (see ``FieldFollower._shape``).
+MIN_LOOKAHEAD = 0.2
+
+#: Slack [m] below the robot's present clearance that the line to the carrot
+#: may keep (floating point and the discretisation of the band only).
+CLEARANCE_SLACK = 1e-3
+
 
 @dataclass
 class _Scene:
@@ -89,6 +110,9 @@ class _Scene:
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
+    beside: np.ndarray = None     # (M',) field points beside the route (route followers)
+    carrot: np.ndarray = None     # (2,) the route follower's field goal [m]
+    blocking: np.ndarray = None   # (B, 2) static points on the route ahead [m]
 
     @property
     def circle_centres(self):
@@ -169,12 +193,36 @@ class FieldFollower(ControllerBase):
         super()._clear_state()
         p = self.params
         self._index = 0
-        self._anchor = None  # start [m] of the segment leading to the current key node
         self._progress = WindowHistory(p.stuck_window, p.control_period)  # sub-goal distances
         self._episode = None
         self._follow = None
         self._best_hit = {}
         self._last_time = None
+        self._plan_route = self._route = None
+        if self.use_key_nodes and self._path is not None:
+            self._set_plan_route()
+
+    # .. the route (key-node followers) ..............................................
+
+    def _set_plan_route(self):
+        """Make the global path the route, and place the key nodes on it."""
+        path = self._path
+        if math.hypot(*(path[-1] - self._key_nodes[-1])) > 0.0:
+            path = np.vstack([path, self._key_nodes[-1]])
+        self._plan_route = self._route = Route(path)
+        arcs, s = [], 0.0
+        for node in self._key_nodes:
+            s = self._plan_route.arc_of(node, start=s)
+            arcs.append(s)
+        self._plan_node_arcs = self._node_arcs = np.array(arcs)
+
+    def _route_from(self, q, index):
+        """Drive from ``q`` straight to key node ``index``'s place on the plan, then along it."""
+        plan = self._plan_route
+        first = plan.index_at(self._plan_node_arcs[index])
+        joint = plan.points[first]
+        self._route = Route(np.vstack([q, plan.points[first:]]))
+        self._node_arcs = self._plan_node_arcs - plan.arc[first] + math.hypot(*(joint - q))
 
     # .. obstacles ....................................................................
 
@@ -277,25 +325,14 @@ class FieldFollower(ControllerBase):
         """The goal the field attracts to (a carrot), given the current sub-goal.
 
         Classic field: the sub-goal itself (eqs. (9)-(14) as written).
-        Improved field with key nodes: the point ``lookahead`` beyond the
-        robot's projection on the segment from the previous key node (or from
-        where this sub-goal was chosen) to the sub-goal, never past the
-        sub-goal; segments between key nodes are collision-free on the map,
-        so a robot pushed off one returns to it instead of cutting a corner.
-        Improved field without key nodes: the point ``lookahead`` ahead on
+        Improved field with key nodes: see :meth:`_shape` (the route's
+        carrot). Improved field without key nodes: the point ``lookahead`` ahead on
         the straight line to the sub-goal. Either way ``rho_g`` of
         eqs. (15)-(16) stays bounded far from the goal and vanishes at it.
         """
         lookahead = self.params.lookahead
         if self.field == 'classic':
             return target
-        if self.use_key_nodes and self._anchor is not None:
-            segment = target - self._anchor
-            length = math.hypot(segment[0], segment[1])
-            if length > apf.DIRECTION_EPS:
-                along = float((q - self._anchor) @ segment) / length
-                reach = min(max(along, 0.0) + lookahead, length)
-                return self._anchor + segment * (reach / length)
         offset = target - q
         dist = math.hypot(offset[0], offset[1])
         if dist <= lookahead:
@@ -303,19 +340,32 @@ class FieldFollower(ControllerBase):
         return q + offset * (lookahead / dist)
 
     def _force(self, q, target, scene, robot_velocity):
-        """Total force at ``q``: eq. (14) (classic field) or eqs. (10) + (15)-(17) (improved)."""
+        """Total force at ``q``: eq. (14) (classic field) or eqs. (10) + (15)-(17) (improved).
+
+        A route follower's field is shaped by its route (:meth:`_shape`):
+        the static points beside the route do not repel, they shift the
+        carrot it attracts to; points on the route and tracked obstacles
+        repel as in the paper.
+        """
         ap = self.params.apf
-        goal = self._field_goal(q, target)
+        goal = self._field_goal(q, target) if scene.carrot is None else scene.carrot
         force = apf.attractive_force(q, goal, ap, check=False)                      # eq. (10)
         if self.field == 'classic':
             return force + apf.classic_repulsive_force(                            # eq. (14)
                 q, scene.field_points, ap, scene.field_weights, check=False)
-        force = force + apf.improved_repulsive_force(                              # eqs. (15)-(16)
-            q, goal, scene.field_points, ap, scene.field_weights, check=False)
+        which = slice(None) if scene.beside is None else ~scene.beside
+        return force + self._repulsion(q, goal, scene, robot_velocity, which)
+
+    def _repulsion(self, q, goal, scene, robot_velocity, which):
+        """Eqs. (15)-(16), plus (17) given the robot's velocity, of the field points ``which``."""
+        ap = self.params.apf
+        points, weights = scene.field_points[which], scene.field_weights[which]
+        force = apf.improved_repulsive_force(q, goal, points, ap, weights,          # eqs. (15)-(16)
+                                             check=False)
         if robot_velocity is not None:
             force = force + apf.velocity_repulsion(                                 # eq. (17)
-                q, robot_velocity, scene.field_points, scene.field_velocities, ap,
-                scene.field_weights, check=False)
+                q, robot_velocity, points, scene.field_velocities[which], ap, weights,
+                check=False)
         return force
 
     def _rollout(self, q, target, scene, first_direction):
@@ -361,12 +411,13 @@ class FieldFollower(ControllerBase):
             return
         p = self.params
         last = len(self._key_nodes) - 1
+        station = self._route.station
         for _ in range(len(self._key_nodes)):  # bounded: each pass advances or stops
             if self._index >= last:
                 break
-            if math.hypot(*(self._key_nodes[self._index] - q)) > p.goal_tolerance:
+            if math.hypot(*(self._key_nodes[self._index] - q)) > p.goal_tolerance \
+                    and self._node_arcs[self._index] > station + p.goal_tolerance:
                 break
-            self._anchor = self._key_nodes[self._index].copy()
             self._index += 1
         if self._index >= last:
             return
@@ -382,7 +433,7 @@ class FieldFollower(ControllerBase):
                                     half + scene.circle_radii)
         if np.any(clear):
             self._index = int(later[in_range][np.nonzero(clear)[0][-1]])
-            self._anchor = q.copy()
+            self._route_from(q, self._index)
 
     # .. stuck detection and escape ...................................................
 
@@ -402,7 +453,7 @@ class FieldFollower(ControllerBase):
         LOGGER.info('local minimum at %s (event %d); escaping', where, self.stuck_events)
         if self.use_key_nodes and not episode.skipped and self._index < len(self._key_nodes) - 1:
             self._index += 1  # the paper's escape: aim at the next A* key node
-            self._anchor = q.copy()
+            self._route_from(q, self._index)
             episode.skipped = True
             episode.index = self._index
             return None
@@ -412,7 +463,8 @@ class FieldFollower(ControllerBase):
                 episode.index = self._index
                 return None
         key = self._index
-        self._best_hit[key] = min(self._best_hit.get(key, math.inf), target_distance)
+        straight = math.hypot(*(self._key_nodes[key] - q))  # what may_leave compares against
+        self._best_hit[key] = min(self._best_hit.get(key, math.inf), straight)
         self._follow = BoundaryFollow()
         return None
 
@@ -429,7 +481,8 @@ class FieldFollower(ControllerBase):
             return False
         self._path, self._key_nodes = path, key_nodes
         self._index = 0
-        self._anchor = q.copy()
+        self._set_plan_route()
+        self._route.project(q)
         self._best_hit = {}
         self._progress.clear()
         self._advance_sub_goal(q, scene)
@@ -473,6 +526,8 @@ class FieldFollower(ControllerBase):
             return self._stop(obs, 'arrived', sub_goal=self._key_nodes[-1].copy())
         scene = self._scene(obs)
         self._remember(obs, scene)
+        if self._route is not None:
+            self._route.project(q)
         self._update_sub_goal(q, scene)
         target = self._key_nodes[self._index]
         if self._episode is not None and obs.time - self._episode.start > p.escape_time_limit:
@@ -483,6 +538,8 @@ class FieldFollower(ControllerBase):
         if reason is not None:
             return self._fail(obs, reason, target.copy())
         target = self._key_nodes[self._index]  # an escape step may have changed it
+        if self._route is not None:
+            self._shape(scene, q)
         if self._follow is None:
             yaw = obs.pose[2]
             robot_velocity = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
@@ -502,6 +559,73 @@ class FieldFollower(ControllerBase):
             command = self._field_command(obs, scene, direction, goal_distance)
             v, w = self._evade(obs, scene, command, direction)
         return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
+
+    def _target_distance(self, q):
+        """Distance [m] to the sub-goal: along the route for a route follower, else straight."""
+        target = self._key_nodes[self._index]
+        route = self._route
+        if route is None:
+            return math.hypot(*(target - q))
+        off = math.hypot(*(q - route.point_at(route.station)))
+        return max(self._node_arcs[self._index] - route.station, 0.0) + off
+
+    def _shape(self, scene, q):
+        """Shape the field by the route: split the static points, place the carrot.
+
+        A static point within :data:`BLOCKING_FRACTION` of the robot radius
+        of the route ahead blocks it and repels as in the paper; the others
+        lie beside the route and repel nothing (a passage's walls would hold
+        the robot back at its entrance, and their steep, opposed pushes make
+        it weave inside). They bound the free band about the route from the
+        robot's station to the carrot, the route point ``lookahead`` ahead;
+        the carrot is shifted across the route to keep
+        :data:`KEEP_CLEARANCE` from them where the band is wide enough, to
+        the band's middle where it is not. Where the straight line to the
+        carrot would graze a point beside the route (cutting a corner the
+        route goes round), the lookahead is halved, down to
+        :data:`MIN_LOOKAHEAD`; the line need not keep more clearance than
+        the robot has now.
+        """
+        p = self.params
+        route = self._route
+        station = route.station
+        static = len(scene.field_points) - len(scene.tracked) * (
+            PREDICTION_SAMPLES if self.predict and p.prediction_horizon > 0 else 1)
+        points = scene.field_points[:static]
+        reach = p.robot_radius + p.apf.rho0 + p.lookahead
+        on_route = route.on_route(points, station - reach, station + reach,
+                                  BLOCKING_FRACTION * p.robot_radius)
+        scene.beside = np.concatenate([~on_route, np.zeros(len(scene.field_points) - static, bool)])
+        side = points[~on_route]
+        scene.blocking = points[on_route]
+        half_width = p.robot_radius + p.safety_distance
+        if len(side):
+            # never demand more clearance of the line than the robot has now
+            nearest = math.sqrt(float(np.min(np.einsum('ij,ij->i', side - q, side - q))))
+            half_width = min(half_width, nearest - CLEARANCE_SLACK)
+        lookahead = p.lookahead
+        while True:
+            carrot = self._centred_carrot(side, lookahead)
+            if lookahead <= MIN_LOOKAHEAD or \
+                    segments_clear(q, carrot[None, :], side, half_width)[0]:
+                break
+            lookahead = max(MIN_LOOKAHEAD, 0.5 * lookahead)
+        scene.carrot = carrot
+
+    def _centred_carrot(self, side, lookahead):
+        """The route point ``lookahead`` [m] ahead, shifted across the free band to it."""
+        p = self.params
+        route = self._route
+        end = route.station + lookahead
+        offsets, inside = route.offsets(side, route.station - p.robot_radius, end)
+        offsets = offsets[inside]
+        room_left = np.min(offsets[offsets > 0], initial=math.inf) - p.robot_radius
+        room_right = np.min(-offsets[offsets < 0], initial=math.inf) - p.robot_radius
+        if room_left + room_right < 2.0 * KEEP_CLEARANCE:
+            shift = 0.5 * (room_left - room_right)
+        else:
+            shift = min(max(0.0, KEEP_CLEARANCE - room_right), room_left - KEEP_CLEARANCE)
+        return route.point_at(end) + shift * route.normal_at(end)
 
     def _update_sub_goal(self, q, scene):
         """Advance the sub-goal; a new one resets the progress window and boundary following."""
@@ -523,17 +647,19 @@ class FieldFollower(ControllerBase):
         p = self.params
         q = obs.pose[:2]
         target = self._key_nodes[self._index]
-        target_distance = math.hypot(*(target - q))
+        target_distance = self._target_distance(q)
         if self._follow is not None:
             best_hit = self._best_hit.get(self._index, math.inf)
             if not escape.may_leave(q, target, best_hit, scene.field_points, p):
                 direction = self._follow.direction(q, target, scene.field_points,
                                                    scene.field_weights, p)
                 if direction is None:  # nothing around: head for the sub-goal
-                    direction = (target - q) / max(target_distance, apf.DIRECTION_EPS)
+                    direction = (target - q) / max(math.hypot(*(target - q)), apf.DIRECTION_EPS)
                 return direction, None
             self._follow = None
             self._progress.clear()
+            if self._route is not None:
+                self._route_from(q, self._index)
         episode = self._episode
         if (episode is not None and not episode.skipped and episode.replans == 0
                 and target_distance < episode.target_distance - p.stuck_progress):
@@ -556,14 +682,24 @@ class FieldFollower(ControllerBase):
         distance straight ahead.
         """
         p = self.params
-        step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)             # eq. (18)
-        v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
-                    p.approach_gain * goal_distance)
-        clearance = p.robot_radius + p.safety_distance
         points = scene.all_points
-        gap = min(front_gap(obs.pose, points, np.zeros(len(points)), clearance),
-                  front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
-        v_cap = min(v_cap, braking_speed(gap, p.max_accel, p.control_period))
+        circles = np.column_stack([scene.circle_centres, scene.circle_radii])
+        on_route = self._route is not None and self._follow is None
+        if on_route:
+            gap = braking_path_gap(obs.pose, self._route, self._route.station, points,
+                                   scene.blocking, circles, p)
+            nearest = gap
+        else:
+            clearance = p.robot_radius + p.safety_distance
+            gap = min(front_gap(obs.pose, points, np.zeros(len(points)), clearance),
+                      front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
+            nearest = scene.nearest_ahead
+        step = apf.adaptive_step(nearest, p.max_speed, p.apf)                         # eq. (18)
+        v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
+                    p.approach_gain * goal_distance,
+                    braking_speed(gap, p.max_accel, p.control_period))
+        if on_route:
+            v_cap = min(v_cap, turn_cap(self._route, self._route.station, p))
         return self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
 
     def _evade(self, obs, scene, command, desired):
