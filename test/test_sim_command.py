@@ -110,6 +110,8 @@ def test_bad_scenario_files_exit_2_with_one_line(capsys, room, changes, words):
     (['--scenario', 'SCEN', '--random', '2'], 'exactly one of'),
     (['--random', '2', '--plot', 'x.png'], '--plot'),
     (['--scenario', 'SCEN', '--controller', 'fusion', '--controller', 'apf'], 'once'),
+    (['--scenario', 'SCEN', '--family', 'clutter'], 'needs --random'),
+    (['--random', '1', '--family', 'maze'], 'unknown family'),
 ])
 def test_bad_command_lines_exit_2_with_one_line(capsys, argv, words):
     argv = [str(SCENARIOS / 'fig5a.yaml') if a == 'SCEN' else a for a in argv]
@@ -147,3 +149,18 @@ def test_batch_table_lists_every_controller(capsys):
     assert code == 0
     for name in ('fusion', 'apf', 'classic-apf', 'astar-track'):
         assert f'| {name} |' in out
+
+
+def test_a_family_batch_in_json_and_in_the_table(capsys):
+    code, out, _ = run_cli(capsys, '--random', '1', '--family', 'narrow', '--controller',
+                           'astar-track', '--json')
+    report = json.loads(out)
+    assert code == 0 and report['family'] == 'narrow'
+    row, = report['episodes']
+    assert row['family'] == 'narrow' and row['solvable'] is True
+    assert row['outcome'] in ('reached', 'no_path', 'controller_failed', 'collisions', 'time_limit')
+    summary = report['controllers']['astar-track']
+    assert {'success_on_solvable', 'outcomes', 'stuck_run_fraction', 'mean_time_ratio',
+            'no_path_fraction', 'max_no_path_delay_s'} <= set(summary)
+    code, out, _ = run_cli(capsys, '--random', '1', '--family', 'narrow', '--controller', 'astar-track')
+    assert code == 0 and '1 narrow scenarios' in out and '| astar-track |' in out

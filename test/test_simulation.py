@@ -14,6 +14,8 @@ import pytest
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.scenario import load_scenario, scenario_from_dict
+from fusion_planner.core.local_planning import follow
+from fusion_planner.core.local_planning.controller_base import Command, ControllerBase
 from fusion_planner.core.simulation.episodes import (
     CONTROLLERS, batch_seeds, run_batch, run_episode, summarise)
 
@@ -154,11 +156,48 @@ def test_a_path_tracker_hits_what_the_map_did_not_show_and_fusion_does_not():
 def test_time_and_collision_limits_end_an_episode():
     slow = run_episode(_corridor(time_limit=2.0), 'fusion', record=False)
     assert not slow.reached and slow.failure.startswith('time_limit')
+    assert slow.outcome == 'time_limit'
     assert slow.time_s == pytest.approx(2.0)
     bumped = run_episode(_corridor([{'circle': {'center': [5.0, 2.0], 'radius': 0.4}}], max_collisions=1),
                          'astar-track', record=False)
-    assert not bumped.reached
+    assert not bumped.reached and bumped.outcome == 'collisions'
     assert bumped.collisions == 1
+
+
+class _Ending(ControllerBase):
+    """Drives straight ahead, then ends with ``status`` at 1 s; proves no path at 0.5 s."""
+
+    status = 'failed'
+
+    def compute(self, obs):
+        if obs.time >= 0.5 - 1e-9 and self.no_path_proven_at is None and self.status == 'no_path':
+            self.no_path_proven_at = obs.time
+        if obs.time >= 1.0 - 1e-9:
+            return self._stop(obs, self.status, 'it is over')
+        return Command(0.3, 0.0, 'moving')
+
+
+@pytest.mark.parametrize('status, outcome, proven', [
+    ('no_path', 'no_path', 0.5), ('failed', 'controller_failed', None)])
+def test_a_controller_ending_maps_to_its_outcome_and_the_proof_time_is_kept(
+        monkeypatch, status, outcome, proven):
+    monkeypatch.setattr(_Ending, 'status', status)
+    monkeypatch.setattr(follow, 'make_controller', lambda name, params, replan=None: _Ending(params))
+    result = run_episode(_corridor(), 'fusion', record=False)
+    assert result.outcome == outcome and result.failure == f'{outcome}: it is over'
+    assert result.no_path_proven_at_s == (None if proven is None else pytest.approx(proven))
+    assert result.time_s == pytest.approx(1.0) and not result.reached
+    assert result.summary()['outcome'] == outcome
+
+
+def test_a_reached_goal_reports_its_time_over_the_optimal_time():
+    result = run_episode(_corridor(), 'fusion', record=False)
+    assert result.outcome == 'reached' and result.failure is None
+    assert result.optimal_length_m == pytest.approx(8.0, abs=0.05)
+    assert result.optimal_time_s == pytest.approx(result.optimal_length_m / 0.8)
+    assert result.time_ratio == pytest.approx(result.time_s / result.optimal_time_s)
+    assert result.time_ratio > 1.0
+    assert result.summary()['time_ratio'] == pytest.approx(result.time_ratio, abs=1e-3)
 
 
 def test_no_plan_on_the_known_map_is_a_failure_not_an_error():
@@ -168,6 +207,7 @@ def test_no_plan_on_the_known_map_is_a_failure_not_an_error():
     s = scenario_from_dict(doc, grid=GridMap(occ, 0.1))
     result = run_episode(s, 'fusion')
     assert not result.reached and result.failure.startswith('no_path')
+    assert result.outcome == 'no_path' and result.optimal_length_m is None
 
 
 # -- batches -----------------------------------------------------------------------------------
@@ -193,10 +233,35 @@ def test_batch_summary_counts():
     assert s.failures == [('b', 'time_limit: late')]
 
 
+def test_batch_summary_of_outcomes_solvable_runs_and_proofs():
+    def row(name, solvable, outcome, stuck=0, ratio=None, proven=None, time_s=20.0):
+        return {'controller': 'x', 'scenario': name, 'solvable': solvable, 'outcome': outcome,
+                'reached': outcome == 'reached', 'collisions': 0, 'time_s': time_s,
+                'path_length_m': 1.0, 'optimal_length_m': 1.0, 'min_clearance_m': 0.2,
+                'stuck_events': stuck, 'failure': None if outcome == 'reached' else f'{outcome}: x',
+                'time_ratio': ratio, 'no_path_proven_at_s': proven, 'wall_time_s': 0.5}
+    rows = [row('a', True, 'reached', ratio=1.2), row('b', True, 'reached', stuck=2, ratio=1.6),
+            row('c', True, 'time_limit'), row('d', False, 'no_path', stuck=1, proven=8.0),
+            row('e', False, 'controller_failed', proven=1.0, time_s=61.0)]
+    s = summarise('x', rows)
+    assert (s.solvable_episodes, s.solvable_reached) == (3, 2)
+    assert s.success_on_solvable == pytest.approx(2 / 3)
+    assert s.outcomes == {'reached': 2, 'no_path': 1, 'controller_failed': 1, 'collisions': 0,
+                          'time_limit': 1}
+    assert s.stuck_run_fraction == pytest.approx(0.4)
+    assert s.mean_time_ratio == pytest.approx(1.4)
+    assert s.unsolvable_episodes == 2 and s.no_path_fraction == 0.5
+    assert s.max_no_path_delay_s == pytest.approx(60.0)
+    assert s.wall_time_s == pytest.approx(2.5)
+
+
 def test_batches_do_not_depend_on_the_worker_count():
     one = run_batch(2, 5, controllers=['astar-track', 'classic-apf'], workers=1)
     two = run_batch(2, 5, controllers=['astar-track', 'classic-apf'], workers=2)
-    assert one.episodes == two.episodes
+
+    def results(batch):
+        return [{k: v for k, v in row.items() if k != 'wall_time_s'} for row in batch.episodes]
+    assert results(one) == results(two)
     assert set(one.controllers) == {'astar-track', 'classic-apf'}
 
 
@@ -205,6 +270,17 @@ def test_batch_refuses_bad_arguments():
         run_batch(0, 1)
     with pytest.raises(InvalidInput):
         run_batch(1, 1, controllers=['fusion', 'teleport'])
+    with pytest.raises(InvalidInput, match='family'):
+        run_batch(1, 1, family='maze')
+
+
+def test_a_family_batch_labels_its_rows():
+    batch = run_batch(1, 3, controllers=['astar-track'], family='unreachable')
+    assert batch.family == 'unreachable' and batch.as_dict()['family'] == 'unreachable'
+    row, = batch.episodes
+    assert row['family'] == 'unreachable' and row['solvable'] is False
+    assert row['optimal_length_m'] is None and row['wall_time_s'] > 0
+    assert batch.controllers['astar-track'].unsolvable_episodes == 1
 
 
 def test_all_controllers_are_known():

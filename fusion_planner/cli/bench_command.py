@@ -17,6 +17,7 @@ TARGETS = {
     'peers': 'fusion_planner.bench.peers',
     'local': 'fusion_planner.bench.local',
     'refine': 'fusion_planner.bench.refine',
+    'families': 'fusion_planner.bench.families',
 }
 
 

@@ -4,26 +4,33 @@ Usage::
 
     fusion-planner sim --scenario FILE [--controller NAME] [--seed N] [--json] [--plot PNG]
         [--gif GIF]
-    fusion-planner sim --random N [--seed S] [--controller NAME ...] [--jobs J] [--json]
+    fusion-planner sim --random N [--family F] [--seed S] [--controller NAME ...] [--jobs J]
+        [--json]
 
 Contract:
 
-- ``NAME`` is one of ``fusion``, ``apf``, ``classic-apf``, ``astar-track``.
-  A scenario runs ``fusion`` by default; a batch runs all four side by side
-  unless ``--controller`` is given (it may be repeated).
+- ``NAME`` is one of the controllers of
+  :data:`~fusion_planner.core.simulation.episodes.CONTROLLERS`. A scenario
+  runs ``fusion`` by default; a batch runs all of them side by side unless
+  ``--controller`` is given (it may be repeated).
+- ``--family F`` (batch only) picks the scenario family, one of ``mixed``
+  (the default), ``clutter``, ``corridors``, ``narrow``, ``unreachable``
+  (docs/SCENARIOS.md).
 - ``--seed`` overrides the scenario's world seed (random walks, scan noise);
   for ``--random`` it is the batch seed (default 0): the same seed gives the
   same scenarios and the same results.
 - ``--json`` prints one JSON object on stdout. A scenario: ``reached``,
-  ``collisions``, ``time_s``, ``path_length_m``, ``min_clearance_m``,
-  ``stuck_events``, ``failure`` (null or ``'<code>: <sentence>'``) plus
-  ``scenario``, ``controller``, ``seed``, ``plan_length_m`` and
-  ``moving_collisions`` (the contacts a moving obstacle began). A batch:
-  ``scenarios``, ``seed``, ``wall_time_s``, ``controllers`` (per controller:
-  ``success_rate``, ``reached``, ``episodes``, ``collisions``,
-  ``moving_collisions``, ``episodes_with_collisions``, ``mean_time_s``,
-  ``path_length_over_optimal``, ``mean_min_clearance_m``,
-  ``stuck_events``, ``failures``) and ``episodes`` (one row per run).
+  ``outcome`` (``reached``, ``no_path``, ``controller_failed``,
+  ``collisions`` or ``time_limit``), ``collisions``, ``time_s``,
+  ``path_length_m``, ``min_clearance_m``, ``stuck_events``, ``failure``
+  (null or ``'<outcome>: <sentence>'``) plus ``scenario``, ``family``,
+  ``solvable``, ``controller``, ``seed``, ``plan_length_m``,
+  ``moving_collisions`` (the contacts a moving obstacle began),
+  ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s`` and
+  ``time_ratio``. A batch: ``scenarios``, ``family``, ``seed``,
+  ``wall_time_s``, ``controllers`` (per controller the fields of
+  :class:`~fusion_planner.core.simulation.episodes.ControllerSummary`) and
+  ``episodes`` (one row per run).
 - ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6;
   ``--gif GIF`` (scenario only) writes it as an animation.
 - A batch reports its progress with an estimated time to completion on
@@ -33,6 +40,7 @@ Contract:
   controller, bad option). Errors are one line on stderr, never a traceback.
 """
 
+import contextlib
 import json
 import logging
 import sys
@@ -40,6 +48,7 @@ import sys
 from fusion_planner.cli.progress import Progress
 from fusion_planner.core.errors import PlanningError
 from fusion_planner.core.simulation.episodes import CONTROLLERS
+from fusion_planner.core.simulation.families import FAMILIES
 
 EXIT_OK, EXIT_NOT_REACHED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -56,7 +65,10 @@ def add_parser(subparsers):
                         help='run a batch of N generated scenarios instead')
     parser.add_argument('--controller', action='append', metavar='NAME',
                         help=f'one of {", ".join(CONTROLLERS)}; default fusion for a scenario, '
-                             'all four for a batch; repeat to select several for a batch')
+                             'all of them for a batch; repeat to select several for a batch')
+    parser.add_argument('--family', metavar='F',
+                        help=f'scenario family of a batch, one of {", ".join(FAMILIES)} '
+                             '(default mixed)')
     parser.add_argument('--seed', type=_seed, metavar='N',
                         help='world seed of a scenario (default: the file\'s), batch seed (default 0)')
     parser.add_argument('--jobs', type=_count, default=1, metavar='J',
@@ -70,14 +82,23 @@ def add_parser(subparsers):
 
 def run(args):
     """Run ``sim``; returns the exit status."""
+    with quiet_core(args):
+        return _run(args)
+
+
+@contextlib.contextmanager
+def quiet_core(args):
+    """Silence the core's warnings unless ``--verbose``.
+
+    Failures are reported in the results; the core's warnings (the
+    controllers' failures) would repeat them.
+    """
     core_logger = logging.getLogger('fusion_planner.core')
     level = core_logger.level
     if not getattr(args, 'verbose', False):
-        # failures are reported in the results; the core's warnings (the controllers'
-        # failures) would repeat them
         core_logger.setLevel(logging.ERROR)
     try:
-        return _run(args)
+        yield
     finally:
         core_logger.setLevel(level)
 
@@ -93,6 +114,8 @@ def _run(args):
                     raise _BadInput(
                         f'{option} draws one scenario; it cannot be used with --random')
             return _run_batch(args, controllers)
+        if args.family is not None:
+            raise _BadInput('--family chooses generated scenarios; it needs --random N')
         if len(controllers) != 1:
             raise _BadInput('a scenario runs one controller; give --controller once')
         return _run_scenario(args, controllers[0])
@@ -143,11 +166,14 @@ def _run_scenario(args, controller):
 def _run_batch(args, controllers):
     from fusion_planner.core.simulation.episodes import run_batch
 
+    family = args.family or 'mixed'
+    if family not in FAMILIES:
+        raise _BadInput(f'unknown family {family!r}; choose one of {", ".join(FAMILIES)}')
     seed = 0 if args.seed is None else args.seed
     reporter = Progress(args.random, 'sim', unit='scenarios')
     batch = run_batch(args.random, seed, controllers=controllers,
                       progress=lambda done, _total: reporter.advance(done - reporter.done),
-                      workers=args.jobs)
+                      workers=args.jobs, family=family)
     reporter.finish()
     if args.json:
         print(json.dumps(batch.as_dict()))
@@ -159,27 +185,58 @@ def _run_batch(args, controllers):
 def _episode_line(s):
     outcome = 'reached' if s['reached'] else f'NOT reached ({s["failure"]})'
     return (f'{s["scenario"]} / {s["controller"]} (seed {s["seed"]}): {outcome}; '
-            f'time {s["time_s"]:.1f} s, path {s["path_length_m"]:.2f} m, '
+            f'time {s["time_s"]:.1f} s (x{_num(s["time_ratio"])} the optimal path at top speed), '
+            f'path {s["path_length_m"]:.2f} m, '
             f'collisions {s["collisions"]}, min clearance {_num(s["min_clearance_m"], "m")}, '
             f'stuck events {s["stuck_events"]}')
 
 
-def batch_table(batch):
-    """The side-by-side table of a batch (Markdown, as in docs/ALGORITHM.md)."""
-    lines = [f'{batch.scenarios} random scenarios, seed {batch.seed}, '
+def batch_table(batch, wall_time=False):
+    """The side-by-side table of a batch (Markdown, as in docs/ALGORITHM.md).
+
+    Parameters
+    ----------
+    batch : BatchResult
+    wall_time : bool
+        Add a column with each controller's wall time [s].
+    """
+    header = ['controller', 'success (solvable)', 'outcomes', 'contacts (episodes; by moving)',
+              'runs with stuck', 'time / optimal', 'path / optimal', 'mean min clearance [m]',
+              'no_path (unsolvable)', 'max proof-to-end [s]']
+    if wall_time:
+        header.append('wall time [s]')
+    lines = [f'{batch.scenarios} {batch.family} scenarios, seed {batch.seed}, '
              f'{batch.wall_time_s:.0f} s wall time',
              '',
-             '| controller | success | collisions (episodes; by moving obstacles) | '
-             'mean time [s] | path length / optimal | mean min clearance [m] | stuck events |',
-             '|---|---|---|---|---|---|---|']
+             '| ' + ' | '.join(header) + ' |',
+             '|' + '---|' * len(header)]
     for name, s in batch.controllers.items():
-        lines.append(
-            f'| {name} | {100 * s.success_rate:.1f}% ({s.reached}/{s.episodes}) | '
-            f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions}) | '
-            f'{_num(s.mean_time_s)} | '
-            f'{_num(s.path_length_over_optimal, digits=3)} | {_num(s.mean_min_clearance_m)} | '
-            f'{s.stuck_events} |')
+        cells = [name, _rate(s.success_on_solvable, s.solvable_reached, s.solvable_episodes),
+                 _outcomes(s.outcomes),
+                 f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions})',
+                 _percent(s.stuck_run_fraction), _num(s.mean_time_ratio),
+                 _num(s.path_length_over_optimal, digits=3), _num(s.mean_min_clearance_m),
+                 _rate(s.no_path_fraction, round(s.no_path_fraction * s.unsolvable_episodes),
+                       s.unsolvable_episodes)
+                 if s.unsolvable_episodes else '-',
+                 _num(s.max_no_path_delay_s, digits=1)]
+        if wall_time:
+            cells.append(f'{s.wall_time_s:.1f}')
+        lines.append('| ' + ' | '.join(cells) + ' |')
     return '\n'.join(lines)
+
+
+def _rate(fraction, count, total):
+    return '-' if fraction is None else f'{100 * fraction:.1f}% ({count}/{total})'
+
+
+def _percent(fraction):
+    return '-' if fraction is None else f'{100 * fraction:.0f}%'
+
+
+def _outcomes(counts):
+    """The outcomes that happened, e.g. ``reached 48, time_limit 2``."""
+    return ', '.join(f'{name} {n}' for name, n in counts.items() if n) or '-'
 
 
 def _num(value, unit='', digits=2):

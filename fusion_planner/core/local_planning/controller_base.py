@@ -249,6 +249,7 @@ class Controller(Protocol):
     """What the simulation runner and the local_planner node call."""
 
     stuck_events: int
+    no_path_proven_at: float
 
     def set_path(self, path: np.ndarray, key_nodes: np.ndarray) -> None:
         """Take a global plan ``(N, 2)`` [m] and its key nodes ``(K, 2)`` [m]."""
@@ -319,6 +320,14 @@ class ControllerBase:
     ----------
     params : FollowerParams
 
+    Attributes
+    ----------
+    stuck_events : int
+        Local-minimum detections since the last reset.
+    no_path_proven_at : float or None
+        Observation time [s] at which a replan proved the goal unreachable,
+        None until then (and after a reset).
+
     Raises
     ------
     InvalidInput
@@ -330,6 +339,7 @@ class ControllerBase:
             raise InvalidInput('a controller needs a FollowerParams')
         self.params = params
         self.stuck_events = 0
+        self.no_path_proven_at = None
         self._path = None
         self._key_nodes = None
         self._failure = None
@@ -366,10 +376,11 @@ class ControllerBase:
         self._clear_state()
 
     def reset(self):
-        """Forget the plan, the stuck history, the failure and the stuck count."""
+        """Forget the plan, the stuck history, the failure, the stuck count and the proof."""
         self._path = None
         self._key_nodes = None
         self.stuck_events = 0
+        self.no_path_proven_at = None
         self._clear_state()
 
     def _clear_state(self):

@@ -11,15 +11,17 @@ the scenario's ``dt``::
          -> world.step(v, omega)
 
 until the robot arrives (within the goal tolerance *and* the controller
-reports ``'arrived'``), the controller reports ``'failed'`` or
-``'no_path'``, the contact-event limit is reached, or time runs out.
-:func:`run_batch` runs several controllers on generated scenarios and
-summarises them side by side.
+reports ``'arrived'``), the controller reports ``'no_path'`` or
+``'failed'``, the contact-event limit is reached, or time runs out.
+:func:`run_batch` runs several controllers on the generated scenarios of one
+family (:mod:`~fusion_planner.core.simulation.families`) and summarises them
+side by side.
 
-Failure reasons are ``'<code>: <sentence>'`` with code one of
-``no_path``, ``controller_failed``, ``collisions``, ``time_limit``.
+Every run ends with one of :data:`OUTCOMES`; failure reasons are
+``'<outcome>: <sentence>'``.
 """
 
+import collections
 import concurrent.futures
 import dataclasses
 import logging
@@ -32,7 +34,8 @@ import numpy as np
 from fusion_planner.core.local_planning import follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.global_planning.planner import GlobalPlanner
-from fusion_planner.core.simulation.scenario import RandomScenarioConfig, random_scenario
+from fusion_planner.core.simulation.families import FAMILIES, family_scenario
+from fusion_planner.core.simulation.scenario import random_scenario
 from fusion_planner.core.simulation.world import World
 
 LOGGER = logging.getLogger(__name__)
@@ -43,6 +46,14 @@ CONTROLLERS = follow.CONTROLLER_NAMES
 PLAN_FOLLOWERS = ('fusion', 'astar-track')
 #: Slack on the arrival distance check [m] (floating point only).
 ARRIVAL_SLACK_M = 1e-9
+#: How a run ends: at the goal; the controller's proof (or the planner's)
+#: that there is no path; the controller giving up otherwise; the
+#: contact-event limit; the time limit.
+OUTCOMES = ('reached', 'no_path', 'controller_failed', 'collisions', 'time_limit')
+#: Controller status -> outcome, for the statuses that end a run.
+_ENDING_STATUS = {'no_path': 'no_path', 'failed': 'controller_failed'}
+#: Stand-in for "compute the optimal length" (None means "there is none").
+_COMPUTE = object()
 
 
 @dataclass
@@ -72,10 +83,24 @@ class EpisodeResult:
         over the run (0 on contact; NaN when nothing was simulated).
     stuck_events : int
         Local-minimum detections reported by the controller.
+    outcome : str
+        One of :data:`OUTCOMES`.
     failure : str or None
-        ``'<code>: <sentence>'`` when not reached.
+        ``'<outcome>: <sentence>'`` when not reached.
     plan_length_m : float or None
         Length of the global plan on the known map [m] (None: no plan).
+    no_path_proven_at_s : float or None
+        Simulated time [s] at which the controller proved the goal
+        unreachable (its ``no_path_proven_at``), None when it did not.
+    optimal_length_m : float or None
+        Length of the plan on the true static map [m] (see
+        :func:`optimal_length`); None when there is none.
+    optimal_time_s : float or None
+        ``optimal_length_m / robot.max_speed`` [s].
+    family : str or None
+        The scenario's family.
+    solvable : bool or None
+        Whether the scenario can be solved (None: not known).
     trajectory : ndarray, float64, shape (T, 3) or None
         Robot poses ``(x, y, yaw)`` at ``t = 0, dt, ..., time_s``
         (``record=True`` only).
@@ -99,30 +124,48 @@ class EpisodeResult:
     min_clearance_m: float
     stuck_events: int
     moving_collisions: int = 0
+    outcome: str = 'reached'
     failure: str = None
     plan_length_m: float = None
+    no_path_proven_at_s: float = None
+    optimal_length_m: float = None
+    optimal_time_s: float = None
+    family: str = None
+    solvable: bool = None
     trajectory: np.ndarray = field(default=None, repr=False)
     obstacle_tracks: np.ndarray = field(default=None, repr=False)
     plan_path: np.ndarray = field(default=None, repr=False)
     key_nodes: np.ndarray = field(default=None, repr=False)
     escape_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
 
+    @property
+    def time_ratio(self):
+        """``time_s / optimal_time_s`` of a reached goal, else None."""
+        if not self.reached or not self.optimal_time_s:
+            return None
+        return self.time_s / self.optimal_time_s
+
     def summary(self):
-        """The JSON-ready figures (issue 3, item 6) plus identification.
+        """The JSON-ready figures plus identification.
 
         Returns
         -------
         dict
-            ``reached``, ``collisions``, ``time_s``, ``path_length_m``,
-            ``min_clearance_m``, ``stuck_events``, ``failure`` (None or a
-            reason), ``scenario``, ``controller``, ``seed``,
-            ``plan_length_m``, ``moving_collisions``.
+            ``reached``, ``outcome``, ``collisions``, ``time_s``,
+            ``path_length_m``, ``min_clearance_m``, ``stuck_events``,
+            ``failure`` (None or a reason), ``scenario``, ``family``,
+            ``solvable``, ``controller``, ``seed``, ``plan_length_m``,
+            ``moving_collisions``, ``no_path_proven_at_s``,
+            ``optimal_length_m``, ``optimal_time_s``, ``time_ratio``.
         """
         return {
             'scenario': self.scenario,
+            'family': self.family,
+            'solvable': self.solvable,
             'controller': self.controller,
             'seed': self.seed,
             'reached': bool(self.reached),
+            'outcome': self.outcome,
             'collisions': int(self.collisions),
             'moving_collisions': int(self.moving_collisions),
             'time_s': round(float(self.time_s), 3),
@@ -131,8 +174,17 @@ class EpisodeResult:
                                 if math.isfinite(self.min_clearance_m) else None),
             'stuck_events': int(self.stuck_events),
             'failure': self.failure,
-            'plan_length_m': None if self.plan_length_m is None else round(float(self.plan_length_m), 3),
+            'plan_length_m': _rounded(self.plan_length_m),
+            'no_path_proven_at_s': _rounded(self.no_path_proven_at_s),
+            'optimal_length_m': _rounded(self.optimal_length_m),
+            'optimal_time_s': _rounded(self.optimal_time_s),
+            'time_ratio': _rounded(self.time_ratio),
         }
+
+
+def _rounded(value, digits=3):
+    """``value`` rounded for JSON, None kept."""
+    return None if value is None else round(float(value), digits)
 
 
 def follower_params(scenario):
@@ -199,7 +251,8 @@ def optimal_length(scenario):
     return float(plan.metrics.length_m)
 
 
-def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
+def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
+                optimal_length_m=_COMPUTE):
     """Run one controller on one scenario.
 
     Parameters
@@ -214,6 +267,9 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     plan : PlanResult, optional
         A plan already made on the known map (saves re-planning when several
         controllers run on the same scenario).
+    optimal_length_m : float or None, optional
+        The scenario's :func:`optimal_length` when already known (None:
+        there is none); computed when not given.
 
     Returns
     -------
@@ -243,6 +299,13 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     start = np.asarray(scenario.start, float)
     goal = np.asarray(scenario.goal, float)
     limits = scenario.limits
+    if optimal_length_m is _COMPUTE:
+        optimal_length_m = optimal_length(scenario)
+    reference = dict(
+        scenario=scenario.name, controller=controller_name, seed=seed,
+        family=scenario.family, solvable=scenario.solvable, optimal_length_m=optimal_length_m,
+        optimal_time_s=(None if optimal_length_m is None
+                        else optimal_length_m / scenario.robot.max_speed))
 
     plan_path = key_nodes = None
     plan_length = None
@@ -253,9 +316,9 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
             LOGGER.info('%s: no global plan: %s', scenario.name, err)
             if controller_name in PLAN_FOLLOWERS:
                 return EpisodeResult(
-                    scenario=scenario.name, controller=controller_name, seed=seed, reached=False,
-                    collisions=0, time_s=0.0, path_length_m=0.0, min_clearance_m=math.nan,
-                    stuck_events=0, failure=f'no_path: {err}')
+                    reached=False, collisions=0, time_s=0.0, path_length_m=0.0,
+                    min_clearance_m=math.nan, stuck_events=0, outcome='no_path',
+                    failure=f'no_path: {err}', no_path_proven_at_s=0.0, **reference)
     if plan is not None:
         plan_path, key_nodes = exact_ends(plan.path, plan.key_nodes, start[:2], goal)
         plan_length = float(plan.metrics.length_m)
@@ -269,7 +332,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
     trajectory, tracks, escapes = [], [], []
     path_length = 0.0
     min_clearance = world.clearance()
-    reached, failure = False, None
+    reached, outcome, failure = False, 'reached', None
     previous_status = None
     max_steps = int(math.ceil(limits.time_limit_s / limits.dt - 1e-9))
     steps = 0
@@ -289,8 +352,9 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
                 np.hypot(*(world.pose[:2] - goal)) <= params.goal_tolerance + ARRIVAL_SLACK_M:
             reached = True
             break
-        if command.status in ('failed', 'no_path'):
-            failure = f'controller_failed: {command.reason or command.status}'
+        if command.status in _ENDING_STATUS:
+            outcome = _ENDING_STATUS[command.status]
+            failure = f'{outcome}: {command.reason or command.status}'
             break
         before = world.pose[:2].copy()
         world.step(command.v, command.omega, limits.dt)
@@ -298,21 +362,25 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None):
         path_length += float(np.hypot(*(world.pose[:2] - before)))
         min_clearance = min(min_clearance, world.clearance())
         if world.contact_events >= limits.max_collisions:
+            outcome = 'collisions'
             failure = f'collisions: stopped after {world.contact_events} contact events'
             break
     else:
+        outcome = 'time_limit'
         failure = f'time_limit: the goal was not reached within {limits.time_limit_s:g} s'
     if record and steps == len(trajectory):
         # the loop ended after a step (limits): record where that step ended
         trajectory.append(world.pose.copy())
         tracks.append(world.obstacle_positions())
     k = len(scenario.moving_obstacles)
+    proven_at = getattr(controller, 'no_path_proven_at', None)
     return EpisodeResult(
-        scenario=scenario.name, controller=controller_name, seed=seed, reached=reached,
-        collisions=world.contact_events, time_s=world.time, path_length_m=path_length,
-        min_clearance_m=min_clearance, stuck_events=int(getattr(controller, 'stuck_events', 0)),
-        moving_collisions=world.moving_contact_events,
+        reached=reached, collisions=world.contact_events, time_s=world.time,
+        path_length_m=path_length, min_clearance_m=min_clearance,
+        stuck_events=int(getattr(controller, 'stuck_events', 0)),
+        moving_collisions=world.moving_contact_events, outcome=outcome,
         failure=failure, plan_length_m=plan_length,
+        no_path_proven_at_s=None if proven_at is None else float(proven_at), **reference,
         trajectory=np.array(trajectory).reshape(-1, 3) if record else None,
         obstacle_tracks=np.array(tracks).reshape(len(tracks), k, 2) if record else None,
         plan_path=plan_path if record else None, key_nodes=key_nodes if record else None,
@@ -332,6 +400,13 @@ class ControllerSummary:
     reached : int
     success_rate : float
         ``reached / episodes``.
+    solvable_episodes : int
+        Episodes on scenarios known to be solvable.
+    solvable_reached : int
+    success_on_solvable : float or None
+        ``solvable_reached / solvable_episodes`` (None: no solvable ones).
+    outcomes : dict of str to int
+        How many episodes ended with each of :data:`OUTCOMES`.
     collisions : int
         Contact events over all episodes.
     moving_collisions : int
@@ -339,12 +414,26 @@ class ControllerSummary:
     episodes_with_collisions : int
     mean_time_s : float or None
         Mean simulated time of the successful episodes [s].
+    mean_time_ratio : float or None
+        Mean of time / optimal time (the optimal path at ``max_speed``) over
+        the successful episodes.
     path_length_over_optimal : float or None
         Mean of driven length / optimal length (plan on the true static map)
         over the successful episodes.
     mean_min_clearance_m : float or None
         Mean of the episodes' smallest clearance [m].
     stuck_events : int
+    stuck_run_fraction : float or None
+        Fraction of the episodes with at least one stuck event.
+    unsolvable_episodes : int
+        Episodes on scenarios known to be unsolvable.
+    no_path_fraction : float or None
+        Fraction of those that ended ``no_path``.
+    max_no_path_delay_s : float or None
+        Largest time from the controller's proof of unreachability to the
+        end of the run [s], over the episodes with a proof.
+    wall_time_s : float
+        Wall time spent in this controller's episodes [s].
     failures : list of tuple
         ``(scenario name, reason)`` of every episode not reached.
     """
@@ -353,19 +442,31 @@ class ControllerSummary:
     episodes: int = 0
     reached: int = 0
     success_rate: float = 0.0
+    solvable_episodes: int = 0
+    solvable_reached: int = 0
+    success_on_solvable: float = None
+    outcomes: dict = field(default_factory=lambda: dict.fromkeys(OUTCOMES, 0))
     collisions: int = 0
     moving_collisions: int = 0
     episodes_with_collisions: int = 0
     mean_time_s: float = None
+    mean_time_ratio: float = None
     path_length_over_optimal: float = None
     mean_min_clearance_m: float = None
     stuck_events: int = 0
+    stuck_run_fraction: float = None
+    unsolvable_episodes: int = 0
+    no_path_fraction: float = None
+    max_no_path_delay_s: float = None
+    wall_time_s: float = 0.0
     failures: list = field(default_factory=list)
 
     def as_dict(self):
         """JSON-ready form (numbers rounded)."""
         out = dataclasses.asdict(self)
-        for key in ('success_rate', 'mean_time_s', 'path_length_over_optimal', 'mean_min_clearance_m'):
+        for key in ('success_rate', 'success_on_solvable', 'mean_time_s', 'mean_time_ratio',
+                    'path_length_over_optimal', 'mean_min_clearance_m', 'stuck_run_fraction',
+                    'no_path_fraction', 'max_no_path_delay_s', 'wall_time_s'):
             if out[key] is not None:
                 out[key] = round(float(out[key]), 4)
         out['failures'] = [{'scenario': s, 'reason': r} for s, r in self.failures]
@@ -382,9 +483,10 @@ class BatchResult:
     seed : int
     controllers : dict of str to ControllerSummary
     episodes : list of dict
-        :meth:`EpisodeResult.summary` of every episode plus
-        ``optimal_length_m``.
+        :meth:`EpisodeResult.summary` of every episode plus ``wall_time_s``.
     wall_time_s : float
+    family : str
+        The scenario family (see :data:`FAMILIES`).
     """
 
     scenarios: int
@@ -392,11 +494,13 @@ class BatchResult:
     controllers: dict
     episodes: list
     wall_time_s: float
+    family: str = 'mixed'
 
     def as_dict(self):
         """JSON-ready form."""
         return {
             'scenarios': self.scenarios,
+            'family': self.family,
             'seed': self.seed,
             'wall_time_s': round(self.wall_time_s, 2),
             'controllers': {name: s.as_dict() for name, s in self.controllers.items()},
@@ -410,16 +514,39 @@ def batch_seeds(n, seed):
     return [int(child.generate_state(1)[0]) for child in children]
 
 
-def run_scenario_set(scenario_seed, controllers, config=None):
-    """Generate one random scenario and run every controller on it.
+def generate(family, seed, config=None):
+    """The generated scenario of a family and seed.
+
+    Parameters
+    ----------
+    family : str
+        One of :data:`FAMILIES`.
+    seed : int
+    config : RandomScenarioConfig, optional
+        Only for ``'mixed'`` (:func:`random_scenario`).
+
+    Raises
+    ------
+    InvalidInput
+        Unknown family, a config for another family, or no valid scenario.
+    """
+    if family == 'mixed':
+        return random_scenario(seed, config)
+    if config is not None:
+        raise InvalidInput(f'a RandomScenarioConfig applies to the mixed family only, not {family!r}')
+    return family_scenario(family, seed)
+
+
+def run_scenario_set(scenario_seed, controllers, config=None, family='mixed'):
+    """Generate one scenario of a family and run every controller on it.
 
     Returns
     -------
     list of dict
         One :meth:`EpisodeResult.summary` per controller, each with
-        ``optimal_length_m``.
+        ``wall_time_s`` (wall time of that episode).
     """
-    scenario = random_scenario(scenario_seed, config)
+    scenario = generate(family, scenario_seed, config)
     optimal = optimal_length(scenario)
     try:
         plan = plan_on_known_map(scenario)
@@ -427,15 +554,17 @@ def run_scenario_set(scenario_seed, controllers, config=None):
         plan = None
     rows = []
     for name in controllers:
-        result = run_episode(scenario, name, record=False, plan=plan)
+        t0 = time.perf_counter()
+        result = run_episode(scenario, name, record=False, plan=plan, optimal_length_m=optimal)
         row = result.summary()
-        row['optimal_length_m'] = None if optimal is None else round(optimal, 3)
+        row['wall_time_s'] = round(time.perf_counter() - t0, 4)
         rows.append(row)
     return rows
 
 
-def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, workers=1):
-    """Run controllers side by side on ``n`` generated scenarios.
+def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, workers=1,
+              family='mixed'):
+    """Run controllers side by side on ``n`` generated scenarios of one family.
 
     Parameters
     ----------
@@ -446,11 +575,14 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     controllers : sequence of str
         Names from :data:`CONTROLLERS`.
     config : RandomScenarioConfig, optional
+        For the ``'mixed'`` family only.
     progress : callable, optional
         ``progress(done, total)`` after each scenario (all controllers).
     workers : int
         Worker processes (1: run in this process). Results do not depend on
         it.
+    family : str
+        One of :data:`FAMILIES`.
 
     Returns
     -------
@@ -459,28 +591,29 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     Raises
     ------
     InvalidInput
-        ``n < 1``, unknown controller or bad worker count.
+        ``n < 1``, unknown controller or family, bad worker count.
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise InvalidInput(f'the batch size must be a positive integer, got {n!r}')
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise InvalidInput(f'workers must be a positive integer, got {workers!r}')
+    if family not in FAMILIES:
+        raise InvalidInput(f'unknown scenario family {family!r}; choose one of {", ".join(FAMILIES)}')
     controllers = tuple(controllers)
     for name in controllers:
         if name not in CONTROLLERS:
             raise InvalidInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
-    config = config or RandomScenarioConfig()
     seeds = batch_seeds(n, seed)
     t0 = time.perf_counter()
     per_scenario = [None] * n
     if workers == 1:
         for i, s in enumerate(seeds):
-            per_scenario[i] = run_scenario_set(s, controllers, config)
+            per_scenario[i] = run_scenario_set(s, controllers, config, family)
             if progress is not None:
                 progress(i + 1, n)
     else:
         with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = {pool.submit(run_scenario_set, s, controllers, config): i
+            futures = {pool.submit(run_scenario_set, s, controllers, config, family): i
                        for i, s in enumerate(seeds)}
             for done, future in enumerate(concurrent.futures.as_completed(futures), start=1):
                 per_scenario[futures[future]] = future.result()
@@ -490,7 +623,12 @@ def run_batch(n, seed, controllers=CONTROLLERS, config=None, progress=None, work
     summaries = {name: summarise(name, [e for e in episodes if e['controller'] == name])
                  for name in controllers}
     return BatchResult(scenarios=n, seed=int(seed), controllers=summaries, episodes=episodes,
-                       wall_time_s=time.perf_counter() - t0)
+                       wall_time_s=time.perf_counter() - t0, family=family)
+
+
+def _mean(values):
+    """Mean of a list, None when empty."""
+    return float(np.mean(values)) if values else None
 
 
 def summarise(controller, rows):
@@ -501,17 +639,32 @@ def summarise(controller, rows):
     ok = [r for r in rows if r['reached']]
     out.reached = len(ok)
     out.success_rate = len(ok) / len(rows)
+    solvable = [r for r in rows if r.get('solvable')]
+    out.solvable_episodes = len(solvable)
+    out.solvable_reached = sum(1 for r in solvable if r['reached'])
+    if solvable:
+        out.success_on_solvable = out.solvable_reached / len(solvable)
+    counts = collections.Counter(r.get('outcome', 'reached' if r['reached'] else None) for r in rows)
+    out.outcomes = {name: counts.get(name, 0) for name in OUTCOMES}
     out.collisions = sum(r['collisions'] for r in rows)
     out.moving_collisions = sum(r.get('moving_collisions', 0) for r in rows)
     out.episodes_with_collisions = sum(1 for r in rows if r['collisions'] > 0)
     out.stuck_events = sum(r['stuck_events'] for r in rows)
-    if ok:
-        out.mean_time_s = float(np.mean([r['time_s'] for r in ok]))
-        ratios = [r['path_length_m'] / r['optimal_length_m'] for r in ok
-                  if r.get('optimal_length_m')]
-        out.path_length_over_optimal = float(np.mean(ratios)) if ratios else None
-    clearances = [r['min_clearance_m'] for r in rows if r['min_clearance_m'] is not None
-                  and math.isfinite(r['min_clearance_m'])]
-    out.mean_min_clearance_m = float(np.mean(clearances)) if clearances else None
+    out.stuck_run_fraction = sum(1 for r in rows if r['stuck_events'] > 0) / len(rows)
+    out.mean_time_s = _mean([r['time_s'] for r in ok])
+    out.mean_time_ratio = _mean([r['time_ratio'] for r in ok if r.get('time_ratio') is not None])
+    out.path_length_over_optimal = _mean([r['path_length_m'] / r['optimal_length_m'] for r in ok
+                                          if r.get('optimal_length_m')])
+    out.mean_min_clearance_m = _mean([r['min_clearance_m'] for r in rows
+                                      if r['min_clearance_m'] is not None
+                                      and math.isfinite(r['min_clearance_m'])])
+    unsolvable = [r for r in rows if r.get('solvable') is False]
+    out.unsolvable_episodes = len(unsolvable)
+    if unsolvable:
+        out.no_path_fraction = sum(1 for r in unsolvable if r['outcome'] == 'no_path') / len(unsolvable)
+    delays = [r['time_s'] - r['no_path_proven_at_s'] for r in rows
+              if r.get('no_path_proven_at_s') is not None]
+    out.max_no_path_delay_s = max(delays) if delays else None
+    out.wall_time_s = float(sum(r.get('wall_time_s', 0.0) for r in rows))
     out.failures = [(r['scenario'], r['failure']) for r in rows if not r['reached']]
     return out
