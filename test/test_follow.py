@@ -17,7 +17,7 @@ import pytest
 
 from fusion_planner.core.local_planning import evasion
 from fusion_planner.core.local_planning.apf import ApfParams
-from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut
 from fusion_planner.core.local_planning.follow import (
     CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
     Observation, make_controller, thin_points)
@@ -441,17 +441,39 @@ def test_fusion_asks_for_a_new_plan_when_the_path_is_blocked():
 
 
 def test_failed_replanning_falls_back_to_boundary_following():
+    """A replan that fails without proving anything (out of time) leaves the escape going."""
     p = params()
     calls = []
 
     def replan(start, goal, seen):
         calls.append(1)
-        raise NoValidPathCouldBeFound('no way in this test')
+        raise PlannerTimedOut('out of time in this test')
 
     controller = make_controller('fusion', p, replan=replan)
     run = simulate(controller, (0.0, 0.0, 0.0), GOAL_U, SCENE_U, duration=90.0)
     assert reached(run), run.final
     assert calls and controller.replans == 0 and controller.stuck_events >= 1
+
+
+def test_a_replan_proving_the_goal_unreachable_stops_the_robot_with_no_path():
+    p = params()
+
+    def replan(start, goal, seen):
+        raise NoValidPathCouldBeFound('walled in, in this test')
+
+    controller = make_controller('fusion', p, replan=replan)
+    run = simulate(controller, (0.0, 0.0, 0.0), GOAL_U, SCENE_U, duration=40.0)
+    assert run.final.status == 'no_path' and 'unreachable' in run.final.reason
+    proven = controller.no_path_proven_at
+    assert proven is not None
+    ended = run.statuses.index('no_path') * DT
+    assert proven <= ended <= proven + 2.0                       # braked, then no_path
+    assert run.final.v == 0.0 and run.final.omega == 0.0
+    assert np.allclose(run.measured[-1], 0.0)                   # standing still
+    assert 'stuck_escaping' not in run.statuses[run.statuses.index('no_path'):]
+    controller.set_path(np.array([[0.0, 0.0], [0.5, 0.0]]), np.array([[0.0, 0.0], [0.5, 0.0]]))
+    obs = Observation(run.poses[-1], np.zeros(2), SCENE_U, np.zeros((0, 5)), 50.0)
+    assert controller.compute(obs).status != 'no_path'         # a new plan clears it
 
 
 def test_grid_replanner_plans_around_seen_points():

@@ -43,10 +43,12 @@ import numpy as np
 from fusion_planner.core.local_planning import apf, escape, evasion
 from fusion_planner.core.local_planning.controller_base import (
     LOCAL_PLAN_POINTS, Command, ControllerBase, WindowHistory, as_path)
-from fusion_planner.core.errors import InvalidInput, PlanningError
+from fusion_planner.core.errors import (
+    GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, points_off_circles, segments_clear, thin_points)
+from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.speed_policy import braking_path_gap, turn_cap
@@ -79,6 +81,13 @@ ROLLOUT_MAX_STEP = 0.2
 
 #: A force shorter than this has no direction: the robot stops (a minimum).
 FORCE_EPS = 1e-9
+
+#: Replanning outcomes that prove the goal unreachable around what was seen.
+UNREACHABLE = (NoValidPathCouldBeFound, GoalOccupied)
+
+#: Below these speeds [m/s, rad/s] the robot counts as stopped.
+STOPPED_SPEED = 1e-3
+STOPPED_TURN = 1e-2
 
 #: A static point closer to the route than this fraction of the robot radius
 #: blocks it (the field pushes the robot off the route around it); a point
@@ -198,6 +207,8 @@ class FieldFollower(ControllerBase):
         self._follow = None
         self._best_hit = {}
         self._last_time = None
+        self._monitor = ProgressMonitor(p.stuck_progress)
+        self._unreachable = None  # why the goal cannot be reached, once a replan proved it
         self._plan_route = self._route = None
         if self.use_key_nodes and self._path is not None:
             self._set_plan_route()
@@ -223,6 +234,14 @@ class FieldFollower(ControllerBase):
         joint = plan.points[first]
         self._route = Route(np.vstack([q, plan.points[first:]]))
         self._node_arcs = self._plan_node_arcs - plan.arc[first] + math.hypot(*(joint - q))
+        self._monitor.rebase(self._remaining(q))
+
+    def _remaining(self, q):
+        """Distance [m] still to go: along the route (plus the way back to it), else straight."""
+        route = self._route
+        if route is None:
+            return math.hypot(*(self._key_nodes[-1] - q))
+        return route.remaining + math.hypot(*(q - route.point_at(route.station)))
 
     # .. obstacles ....................................................................
 
@@ -462,6 +481,8 @@ class FieldFollower(ControllerBase):
             if self._replan_now(obs, q, scene):
                 episode.index = self._index
                 return None
+            if self._unreachable is not None:
+                return None
         key = self._index
         straight = math.hypot(*(self._key_nodes[key] - q))  # what may_leave compares against
         self._best_hit[key] = min(self._best_hit.get(key, math.inf), straight)
@@ -478,11 +499,17 @@ class FieldFollower(ControllerBase):
             key_nodes = as_path(key_nodes, 'replanned key_nodes')
         except PlanningError as err:
             LOGGER.info('replanning from (%.2f, %.2f) failed: %s', q[0], q[1], err)
+            if isinstance(err, UNREACHABLE):
+                self._unreachable = (f'the goal is unreachable around the obstacles seen '
+                                     f'(replanned from ({q[0]:.2f}, {q[1]:.2f})): {err}')
+                if self.no_path_proven_at is None:
+                    self.no_path_proven_at = obs.time
             return False
         self._path, self._key_nodes = path, key_nodes
         self._index = 0
         self._set_plan_route()
         self._route.project(q)
+        self._monitor.rebase(self._remaining(q))
         self._best_hit = {}
         self._progress.clear()
         self._advance_sub_goal(q, scene)
@@ -516,6 +543,8 @@ class FieldFollower(ControllerBase):
         stop = self._checked_stop(obs)
         if stop is not None:
             return stop
+        if self._unreachable is not None:
+            return self._stop_unreachable(obs)
         p = self.params
         if self._last_time is not None and obs.time < self._last_time:
             self._progress.clear()  # the clock went back (simulation reset)
@@ -530,13 +559,15 @@ class FieldFollower(ControllerBase):
             self._route.project(q)
         self._update_sub_goal(q, scene)
         target = self._key_nodes[self._index]
-        if self._episode is not None and obs.time - self._episode.start > p.escape_time_limit:
-            reason = (f'still stuck after {p.escape_time_limit:g} s of escape near '
+        if self._monitor.update(obs.time, self._remaining(q)) > p.escape_time_limit:
+            reason = (f'stuck: no progress toward the goal for {p.escape_time_limit:g} s, near '
                       f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
             return self._fail(obs, reason, target.copy())
         direction, reason = self._escape_direction(obs, scene)
         if reason is not None:
             return self._fail(obs, reason, target.copy())
+        if self._unreachable is not None:
+            return self._stop_unreachable(obs)
         target = self._key_nodes[self._index]  # an escape step may have changed it
         if self._route is not None:
             self._shape(scene, q)
@@ -592,40 +623,59 @@ class FieldFollower(ControllerBase):
         static = len(scene.field_points) - len(scene.tracked) * (
             PREDICTION_SAMPLES if self.predict and p.prediction_horizon > 0 else 1)
         points = scene.field_points[:static]
-        reach = p.robot_radius + p.apf.rho0 + p.lookahead
-        on_route = route.on_route(points, station - reach, station + reach,
-                                  BLOCKING_FRACTION * p.robot_radius)
+        distance, index = route.nearest(points, station - p.robot_radius,
+                                        station + p.lookahead + p.robot_radius)
+        on_route = distance < BLOCKING_FRACTION * p.robot_radius
         scene.beside = np.concatenate([~on_route, np.zeros(len(scene.field_points) - static, bool)])
-        side = points[~on_route]
         scene.blocking = points[on_route]
+        side = points[~on_route]
+        offsets = route.signed_offsets(side, distance[~on_route], index[~on_route])
+        side_index = index[~on_route]
         half_width = p.robot_radius + p.safety_distance
         if len(side):
             # never demand more clearance of the line than the robot has now
             nearest = math.sqrt(float(np.min(np.einsum('ij,ij->i', side - q, side - q))))
             half_width = min(half_width, nearest - CLEARANCE_SLACK)
-        lookahead = p.lookahead
-        while True:
-            carrot = self._centred_carrot(side, lookahead)
-            if lookahead <= MIN_LOOKAHEAD or \
-                    segments_clear(q, carrot[None, :], side, half_width)[0]:
-                break
-            lookahead = max(MIN_LOOKAHEAD, 0.5 * lookahead)
+        carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]))[0]
+        if p.lookahead > MIN_LOOKAHEAD and not segments_clear(q, carrot[None, :], side,
+                                                              half_width)[0]:
+            halvings = int(math.ceil(math.log2(p.lookahead / MIN_LOOKAHEAD)))
+            shorter = np.maximum(p.lookahead * 0.5**np.arange(1, halvings + 1), MIN_LOOKAHEAD)
+            carrots = self._centred_carrots(offsets, side_index, shorter)
+            clear = np.append(segments_clear(q, carrots[:-1], side, half_width), True)
+            carrot = carrots[int(np.argmax(clear))]
         scene.carrot = carrot
 
-    def _centred_carrot(self, side, lookahead):
-        """The route point ``lookahead`` [m] ahead, shifted across the free band to it."""
+    def _centred_carrots(self, offsets, index, lookaheads):
+        """The route points ``lookaheads`` (C,) [m] ahead, each shifted across the free band to it.
+
+        ``offsets`` [m] are the signed distances of the points beside the
+        route from their nearest route points, ``index`` the indices of
+        those; only points beside the route between the robot's station
+        (less a radius) and a carrot bound its band. Returns ``(C, 2)`` [m].
+        """
         p = self.params
         route = self._route
-        end = route.station + lookahead
-        offsets, inside = route.offsets(side, route.station - p.robot_radius, end)
-        offsets = offsets[inside]
-        room_left = np.min(offsets[offsets > 0], initial=math.inf) - p.robot_radius
-        room_right = np.min(-offsets[offsets < 0], initial=math.inf) - p.robot_radius
-        if room_left + room_right < 2.0 * KEEP_CLEARANCE:
-            shift = 0.5 * (room_left - room_right)
-        else:
-            shift = min(max(0.0, KEEP_CLEARANCE - room_right), room_left - KEEP_CLEARANCE)
-        return route.point_at(end) + shift * route.normal_at(end)
+        ends = route.station + lookaheads
+        last = np.array([route.index_at(end) for end in ends])
+        inside = (index > route.index_at(route.station - p.robot_radius)) \
+            & (index < last[:, None])                                       # (C, M)
+        left = np.where(inside & (offsets > 0), offsets, math.inf)
+        right = np.where(inside & (offsets < 0), -offsets, math.inf)
+        room_left = np.min(left, axis=1, initial=math.inf) - p.robot_radius
+        room_right = np.min(right, axis=1, initial=math.inf) - p.robot_radius
+        with np.errstate(invalid='ignore'):  # inf - inf where no point bounds either side
+            middle = 0.5 * (room_left - room_right)
+        keep = np.minimum(np.maximum(0.0, KEEP_CLEARANCE - room_right), room_left - KEEP_CLEARANCE)
+        shift = np.where(room_left + room_right < 2.0 * KEEP_CLEARANCE, middle, keep)
+        return np.array([route.point_at(end) + d * route.normal_at(end)
+                         for end, d in zip(ends, shift)])
+
+    def _stop_unreachable(self, obs):
+        """Brake once the goal is proven unreachable; ``'no_path'`` when the robot stands still."""
+        v, omega = obs.velocity
+        stopped = abs(v) <= STOPPED_SPEED and abs(omega) <= STOPPED_TURN
+        return self._stop(obs, 'no_path' if stopped else 'stuck_escaping', self._unreachable)
 
     def _update_sub_goal(self, q, scene):
         """Advance the sub-goal; a new one resets the progress window and boundary following."""

@@ -3,9 +3,8 @@
 The fusion controller follows the global plan through a :class:`Route`: the
 path resampled every :data:`ROUTE_SPACING` metres, the robot's *station*
 (arc length of its projection, which only moves forward), the carrot ahead
-of it, the tangent there, the sharpest turn ahead, and which obstacle points
-lie *on* the route (the robot would touch them driving it exactly) rather
-than beside it. Map frame, metres and radians throughout.
+of it, the tangent there, the sharpest turn ahead, and where obstacle points
+lie with respect to it (on it or beside it, on which side). Map frame, metres and radians throughout.
 
 Examples
 --------
@@ -13,10 +12,12 @@ Examples
 >>> route = Route(np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]]))
 >>> round(route.length, 3), round(route.project(np.array([1.0, 0.2])), 3)
 (7.0, 1.0)
->>> route.point_at(5.0).tolist()
+>>> route.point_at(5.0).round(6).tolist()
 [4.0, 1.0]
->>> route.on_route(np.array([[2.0, 0.05], [2.0, 0.5]]), 1.0, 3.0, 0.1).tolist()
-[True, False]
+>>> points = np.array([[2.0, 0.05], [2.0, -0.5]])
+>>> distance, index = route.nearest(points, 1.0, 3.0)
+>>> route.signed_offsets(points, distance, index).round(2).tolist()
+[0.05, -0.5]
 """
 
 import math
@@ -139,66 +140,49 @@ class Route:
         t = self.tangent_at(s)
         return np.array([-t[1], t[0]])
 
-    def offsets(self, points, s_from, s_to):
-        """Signed distances [m] of points from the route between two arc lengths.
+    def nearest(self, points, s_from, s_to):
+        """The nearest route point between two arc lengths, for each point.
 
         Parameters
         ----------
         points : ndarray, shape (M, 2)
             [m].
         s_from, s_to : float
-            Arc lengths [m] of the piece of route measured against.
+            Arc lengths [m] of the piece of route searched.
 
         Returns
         -------
-        offsets : ndarray, shape (M,)
-            Distance to the nearest point of the piece, positive on the
-            route's left, negative on its right.
-        inside : ndarray of bool, shape (M,)
-            The nearest point is not an end of the piece (the point lies
-            beside the piece, not before or after it).
+        distance : ndarray, shape (M,)
+            Distance [m] to the nearest point of the piece.
+        index : ndarray of int, shape (M,)
+            Its index in :attr:`points`.
         """
         if len(points) == 0:
-            return np.zeros(0), np.zeros(0, bool)
+            return np.zeros(0), np.zeros(0, np.int64)
         i = self.index_at(s_from)
         piece = self.points[i:self.index_at(s_to) + 1]
         dx = points[:, 0:1] - piece[:, 0]
         dy = points[:, 1:2] - piece[:, 1]
-        nearest = np.argmin(dx * dx + dy * dy, axis=1)
-        rows = np.arange(len(points))
-        heading = self._headings[i + nearest]
-        across = np.cos(heading) * dy[rows, nearest] - np.sin(heading) * dx[rows, nearest]
-        inside = (nearest > 0) & (nearest < len(piece) - 1)
-        return np.copysign(np.hypot(dx[rows, nearest], dy[rows, nearest]), across), inside
+        squared = dx * dx + dy * dy
+        nearest = np.argmin(squared, axis=1)
+        return np.sqrt(squared[np.arange(len(points)), nearest]), i + nearest
 
-    def on_route(self, points, s_from, s_to, half_width):
-        """Which points lie within ``half_width`` [m] of the route between two arc lengths.
+    def signed_offsets(self, points, distance, index):
+        """Signed distances [m] of points from their nearest route points (+ on the left).
 
-        Parameters
-        ----------
-        points : ndarray, shape (M, 2)
-            [m].
-        s_from, s_to : float
-            Arc lengths [m] of the piece of route tested.
-        half_width : float
-            [m].
-
-        Returns
-        -------
-        ndarray of bool, shape (M,)
+        ``distance`` and ``index`` are what :meth:`nearest` returned for
+        ``points``.
         """
-        if len(points) == 0:
-            return np.zeros(0, bool)
-        piece = self.points[self.index_at(s_from):self.index_at(s_to) + 1]
-        dx = points[:, 0:1] - piece[:, 0]
-        dy = points[:, 1:2] - piece[:, 1]
-        return np.min(dx * dx + dy * dy, axis=1) < half_width * half_width
+        heading = self._headings[index]
+        rel = points - self.points[index]
+        across = np.cos(heading) * rel[:, 1] - np.sin(heading) * rel[:, 0]
+        return np.copysign(distance, across)
 
     def along_to_first(self, points, s_from, s_to, half_width):
         """Arc length [m] from ``s_from`` to the first route point within ``half_width`` of a point.
 
-        ``inf`` when no point comes that close to the route between
-        ``s_from`` and ``s_to``.
+        ``half_width`` [m] is one value or one per point; ``inf`` when no
+        point comes that close to the route between ``s_from`` and ``s_to``.
         """
         if len(points) == 0:
             return math.inf
@@ -206,5 +190,5 @@ class Route:
         piece = self.points[i:self.index_at(s_to) + 1]
         dx = piece[:, 0:1] - points[:, 0]
         dy = piece[:, 1:2] - points[:, 1]
-        hit = np.nonzero(np.min(dx * dx + dy * dy, axis=1) < half_width * half_width)[0]
+        hit = np.nonzero(np.any(dx * dx + dy * dy < np.square(half_width), axis=1))[0]
         return math.inf if len(hit) == 0 else float(self.arc[i + hit[0]] - s_from)

@@ -19,7 +19,7 @@ Examples
 >>> straight = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
 >>> turn_cap(straight, 0.0, p) >= 1.0
 True
->>> corner = Route(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 5.0]]))
+>>> corner = Route(np.array([[0.0, 0.0], [0.5, 0.0], [0.5, 5.0]]))
 >>> bool(turn_cap(corner, 0.0, p) < 1.0)
 True
 """
@@ -130,10 +130,8 @@ def braking_path_gap(pose, route, station, points, blocking, circles, params):
     p = params
     clearance = p.robot_radius + p.safety_distance
     end = station + braking_distance(p)
-    along = route.along_to_first(blocking, station, end, clearance)
-    for x, y, radius in circles:
-        along = min(along, route.along_to_first(np.array([[x, y]]), station, end,
-                                                clearance + radius))
+    along = min(route.along_to_first(blocking, station, end, clearance),
+                route.along_to_first(circles[:, 0:2], station, end, clearance + circles[:, 2]))
     passing = clearance
     if len(points):
         # driving on past a point at the clearance the robot already has is no contact
