@@ -52,6 +52,7 @@ from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.speed_policy import braking_path_gap, turn_cap
+from fusion_planner.core.local_planning.yielding import passing_bounds
 
 LOGGER = logging.getLogger(__name__)
 
@@ -209,6 +210,7 @@ class FieldFollower(ControllerBase):
         self._last_time = None
         self._monitor = ProgressMonitor(p.stuck_progress)
         self._unreachable = None  # why the goal cannot be reached, once a replan proved it
+        self._passing_side = 0    # side kept for the people on the route (see yielding)
         self._plan_route = self._route = None
         if self.use_key_nodes and self._path is not None:
             self._set_plan_route()
@@ -615,7 +617,10 @@ class FieldFollower(ControllerBase):
         carrot would graze a point beside the route (cutting a corner the
         route goes round), the lookahead is halved, down to
         :data:`MIN_LOOKAHEAD`; the line need not keep more clearance than
-        the robot has now.
+        the robot has now. People on the route ahead narrow the band to the
+        side of them the robot keeps to
+        (:mod:`~fusion_planner.core.local_planning.yielding`); while it keeps
+        to a side, the tracked obstacles do not repel either.
         """
         p = self.params
         route = self._route
@@ -626,7 +631,6 @@ class FieldFollower(ControllerBase):
         distance, index = route.nearest(points, station - p.robot_radius,
                                         station + p.lookahead + p.robot_radius)
         on_route = distance < BLOCKING_FRACTION * p.robot_radius
-        scene.beside = np.concatenate([~on_route, np.zeros(len(scene.field_points) - static, bool)])
         scene.blocking = points[on_route]
         side = points[~on_route]
         offsets = route.signed_offsets(side, distance[~on_route], index[~on_route])
@@ -636,23 +640,33 @@ class FieldFollower(ControllerBase):
             # never demand more clearance of the line than the robot has now
             nearest = math.sqrt(float(np.min(np.einsum('ij,ij->i', side - q, side - q))))
             half_width = min(half_width, nearest - CLEARANCE_SLACK)
-        carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]))[0]
+        wall_left = np.min(offsets[offsets > 0], initial=math.inf)
+        wall_right = np.min(-offsets[offsets < 0], initial=math.inf)
+        *people, self._passing_side = passing_bounds(route, scene.tracked, wall_left, wall_right,
+                                                     p, self._passing_side)
+        # people being passed bound the band, like walls; the evasion check keeps them safe
+        passing = np.full(len(scene.field_points) - static, self._passing_side != 0)
+        scene.beside = np.concatenate([~on_route, passing])
+        carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]), people)[0]
         if p.lookahead > MIN_LOOKAHEAD and not segments_clear(q, carrot[None, :], side,
                                                               half_width)[0]:
             halvings = int(math.ceil(math.log2(p.lookahead / MIN_LOOKAHEAD)))
             shorter = np.maximum(p.lookahead * 0.5**np.arange(1, halvings + 1), MIN_LOOKAHEAD)
-            carrots = self._centred_carrots(offsets, side_index, shorter)
+            carrots = self._centred_carrots(offsets, side_index, shorter, people)
             clear = np.append(segments_clear(q, carrots[:-1], side, half_width), True)
             carrot = carrots[int(np.argmax(clear))]
         scene.carrot = carrot
 
-    def _centred_carrots(self, offsets, index, lookaheads):
+    def _centred_carrots(self, offsets, index, lookaheads, people):
         """The route points ``lookaheads`` (C,) [m] ahead, each shifted across the free band to it.
 
         ``offsets`` [m] are the signed distances of the points beside the
         route from their nearest route points, ``index`` the indices of
         those; only points beside the route between the robot's station
-        (less a radius) and a carrot bound its band. Returns ``(C, 2)`` [m].
+        (less a radius) and a carrot bound its band. ``people`` are the
+        bounds ``(room_left, room_right)`` [m] of
+        :func:`~fusion_planner.core.local_planning.yielding.passing_bounds`.
+        Returns ``(C, 2)`` [m].
         """
         p = self.params
         route = self._route
@@ -662,8 +676,9 @@ class FieldFollower(ControllerBase):
             & (index < last[:, None])                                       # (C, M)
         left = np.where(inside & (offsets > 0), offsets, math.inf)
         right = np.where(inside & (offsets < 0), -offsets, math.inf)
-        room_left = np.min(left, axis=1, initial=math.inf) - p.robot_radius
-        room_right = np.min(right, axis=1, initial=math.inf) - p.robot_radius
+        room_left = np.minimum(np.min(left, axis=1, initial=math.inf) - p.robot_radius, people[0])
+        room_right = np.minimum(np.min(right, axis=1, initial=math.inf) - p.robot_radius,
+                                people[1])
         with np.errstate(invalid='ignore'):  # inf - inf where no point bounds either side
             middle = 0.5 * (room_left - room_right)
         keep = np.minimum(np.maximum(0.0, KEEP_CLEARANCE - room_right), room_left - KEEP_CLEARANCE)
@@ -734,6 +749,8 @@ class FieldFollower(ControllerBase):
         p = self.params
         points = scene.all_points
         circles = np.column_stack([scene.circle_centres, scene.circle_radii])
+        if self._passing_side != 0:
+            circles = circles[:0]  # keeping to one side of them: the evasion check keeps them safe
         on_route = self._route is not None and self._follow is None
         if on_route:
             gap = braking_path_gap(obs.pose, self._route, self._route.station, points,
