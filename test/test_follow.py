@@ -399,11 +399,21 @@ def test_evasion_keeps_a_safe_command():
     assert evade_now((0.5, 0.1), np.zeros((0, 5))) == (0.5, 0.1, False)
 
 
-def test_evasion_backs_away_from_a_person_walking_at_the_robot():
-    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]])
+#: A slit 0.9 m wide along x: no room to step aside of a person in it.
+SLIT = np.vstack([wall((-2.0, -0.45), (3.0, -0.45), spacing=0.05),
+                  wall((-2.0, 0.45), (3.0, 0.45), spacing=0.05)])
+
+
+def test_evasion_backs_away_from_a_person_walking_at_the_robot_in_a_slit():
+    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]], SLIT)
     assert evading
     assert -evasion.REVERSE_FRACTION * params().max_speed - EPS <= v < 0.0
     assert abs(omega) <= params().max_omega + EPS
+
+
+def test_evasion_steps_aside_rather_than_back_away_where_there_is_room():
+    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]])
+    assert evading and v >= 0.0 and abs(omega) > 0.0
 
 
 def test_evasion_does_not_back_into_a_wall():
@@ -414,7 +424,7 @@ def test_evasion_does_not_back_into_a_wall():
 
 def test_evasion_ignores_scan_points_on_the_tracked_person():
     person = [[1.2, 0.0, -0.35, 0.0, 0.3]]
-    v, _, _ = evade_now((0.0, 0.0), person, circle((1.2, 0.0), 0.3))
+    v, _, _ = evade_now((0.0, 0.0), person, np.vstack([SLIT, circle((1.2, 0.0), 0.3)]))
     assert v < 0.0                                              # the person is not a wall
 
 

@@ -47,7 +47,8 @@ from fusion_planner.core.errors import (
     GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
 from fusion_planner.core.local_planning.local_geometry import (
-    braking_speed, circle_points, front_gap, points_off_circles, segments_clear, thin_points)
+    braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
+    thin_points)
 from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
@@ -100,7 +101,11 @@ BLOCKING_FRACTION = 0.5
 #: Clearance [m] from the points beside the route that the carrot keeps where
 #: there is room; in a passage narrower than twice this (plus the robot) the
 #: carrot is centred.
-KEEP_CLEARANCE = 0.15
+KEEP_CLEARANCE = 0.12
+
+#: Gap [m] the band keeps from the points beside the route even where it is
+#: narrow (the carrot is centred in what is left).
+MIN_WALL_GAP = 0.03
 
 #: Shortest carrot distance [m] along the route (see ``FieldFollower._shape``).
 MIN_LOOKAHEAD = 0.2
@@ -627,7 +632,9 @@ class FieldFollower(ControllerBase):
         station = route.station
         static = len(scene.field_points) - len(scene.tracked) * (
             PREDICTION_SAMPLES if self.predict and p.prediction_horizon > 0 else 1)
-        points = scene.field_points[:static]
+        on_people = ~off_circles(scene.field_points[:static], scene.circle_centres,
+                                 scene.circle_radii)
+        points = scene.field_points[:static][~on_people]
         distance, index = route.nearest(points, station - p.robot_radius,
                                         station + p.lookahead + p.robot_radius)
         on_route = distance < BLOCKING_FRACTION * p.robot_radius
@@ -645,8 +652,11 @@ class FieldFollower(ControllerBase):
         *people, self._passing_side = passing_bounds(route, scene.tracked, wall_left, wall_right,
                                                      p, self._passing_side)
         # people being passed bound the band, like walls; the evasion check keeps them safe
+        beside = np.zeros(static, bool)
+        beside[~on_people] = ~on_route
+        beside[on_people] = self._passing_side != 0
         passing = np.full(len(scene.field_points) - static, self._passing_side != 0)
-        scene.beside = np.concatenate([~on_route, passing])
+        scene.beside = np.concatenate([beside, passing])
         carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]), people)[0]
         if p.lookahead > MIN_LOOKAHEAD and not segments_clear(q, carrot[None, :], side,
                                                               half_width)[0]:
@@ -676,9 +686,9 @@ class FieldFollower(ControllerBase):
             & (index < last[:, None])                                       # (C, M)
         left = np.where(inside & (offsets > 0), offsets, math.inf)
         right = np.where(inside & (offsets < 0), -offsets, math.inf)
-        room_left = np.minimum(np.min(left, axis=1, initial=math.inf) - p.robot_radius, people[0])
-        room_right = np.minimum(np.min(right, axis=1, initial=math.inf) - p.robot_radius,
-                                people[1])
+        wall = p.robot_radius + MIN_WALL_GAP
+        room_left = np.minimum(np.min(left, axis=1, initial=math.inf) - wall, people[0])
+        room_right = np.minimum(np.min(right, axis=1, initial=math.inf) - wall, people[1])
         with np.errstate(invalid='ignore'):  # inf - inf where no point bounds either side
             middle = 0.5 * (room_left - room_right)
         keep = np.minimum(np.maximum(0.0, KEEP_CLEARANCE - room_right), room_left - KEEP_CLEARANCE)

@@ -105,6 +105,11 @@ class Route:
         t = 0.0 if step <= 0.0 else (min(max(s, 0.0), self.length) - self.arc[i]) / step
         return a + t * (b - a)
 
+    def tangents(self, index):
+        """Unit tangents ``(M, 2)`` of the route at its points ``index`` (M,)."""
+        heading = self._headings[index]
+        return np.column_stack([np.cos(heading), np.sin(heading)])
+
     def tangent_at(self, s):
         """Unit tangent ``(2,)`` of the route at arc length ``s``."""
         heading = self._headings[self.index_at(s)]
@@ -173,9 +178,9 @@ class Route:
         ``distance`` and ``index`` are what :meth:`nearest` returned for
         ``points``.
         """
-        heading = self._headings[index]
+        tangent = self.tangents(index)
         rel = points - self.points[index]
-        across = np.cos(heading) * rel[:, 1] - np.sin(heading) * rel[:, 0]
+        across = tangent[:, 0] * rel[:, 1] - tangent[:, 1] * rel[:, 0]
         return np.copysign(distance, across)
 
     def along_to_first(self, points, s_from, s_to, half_width):

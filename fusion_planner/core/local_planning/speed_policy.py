@@ -49,6 +49,10 @@ STRAIGHT_TURN = 1e-3
 #: close to a post beside it may drive on past it, not closer.
 PASSING_SLACK = 1e-3
 
+#: ... but never less than this [m]: creeping along a wall a millimetre
+#: closer each step would end in contact.
+PASSING_FLOOR = 5e-3
+
 
 def braking_distance(params):
     """Distance [m] to stop from ``max_speed`` at ``max_accel``, plus one period's travel."""
@@ -137,7 +141,7 @@ def braking_path_gap(pose, route, station, points, blocking, circles, params):
         # driving on past a point at the clearance the robot already has is no contact
         d = points - pose[:2]
         now = math.sqrt(float(np.min(np.einsum('ij,ij->i', d, d))))
-        passing = max(min(clearance, now - PASSING_SLACK), p.robot_radius)
+        passing = max(min(clearance, now - PASSING_SLACK), p.robot_radius + PASSING_FLOOR)
     straight = min(front_gap(pose, points, np.zeros(len(points)), passing),
                    front_gap(pose, circles[:, 0:2], circles[:, 2], clearance))
     return min(along, straight)

@@ -5,7 +5,8 @@ way for many metres; pushed by the field and by the evasion check alone, the
 robot backs away in front of them (it was herded 11 m in a 1.8 m corridor).
 People do better: each keeps to one side and they pass. :func:`passing_bounds`
 picks, for the tracked obstacles near the route within :data:`YIELD_RANGE`
-ahead, the side with more free width between them and the walls (and keeps
+ahead that walk along it (head-on or the same way, not across: a person
+crossing is avoided by the field at their predicted positions), the side with more free width between them and the walls (and keeps
 that side while they stay), and returns how far across the route the robot
 may then go: the carrot is shifted into that gap, and the evasion check lets
 the robot wait there while the person passes
@@ -51,7 +52,8 @@ def passing_bounds(route, tracked, wall_left, wall_right, params, previous_side)
     params : FollowerParams
     previous_side : int
         The side kept on the last step (+1 left of the people, -1 right of
-        them, 0 none): kept while people are still on the route.
+        them, 0 none): kept while people are still on the route and the
+        robot fits there.
 
     Returns
     -------
@@ -60,7 +62,8 @@ def passing_bounds(route, tracked, wall_left, wall_right, params, previous_side)
         may take to keep :data:`PASSING_MARGIN` from the people (``inf``:
         unbounded); either may be negative (that side of the route is taken).
     side : int
-        The side now kept, 0 when nobody is on the route ahead.
+        The side now kept; 0 when nobody is on the route ahead, or when the
+        robot fits on neither side of them (then it has no bounds).
     """
     r = params.robot_radius
     if len(tracked) == 0:
@@ -68,17 +71,25 @@ def passing_bounds(route, tracked, wall_left, wall_right, params, previous_side)
     centres, radii = tracked[:, 0:2], tracked[:, 4]
     distance, index = route.nearest(centres, route.station - r, route.station + YIELD_RANGE)
     offsets = route.signed_offsets(centres, distance, index)
-    ahead = index > route.index_at(route.station - r)
+    # beside the searched piece, not beyond either end of it
+    ahead = (index > route.index_at(route.station - r)) \
+        & (index < route.index_at(route.station + YIELD_RANGE))
     reach = r + radii + PASSING_MARGIN
-    on_route = ahead & (np.abs(offsets) < reach)
+    tangent = route.tangents(index)
+    along = np.abs(tangent[:, 0] * tracked[:, 2] + tangent[:, 1] * tracked[:, 3])
+    across = np.abs(tangent[:, 0] * tracked[:, 3] - tangent[:, 1] * tracked[:, 2])
+    on_route = ahead & (np.abs(offsets) < reach) & (across <= along)
     if not np.any(on_route):
         return math.inf, math.inf, 0
     offsets, reach = offsets[on_route], reach[on_route]
+    # the room the robot's centre has between the people and the walls on either side
+    free_left = (wall_left - r) - float(np.max(offsets + reach))
+    free_right = (wall_right - r) + float(np.min(offsets - reach))
     side = previous_side
-    if side == 0:
-        free_left = wall_left - float(np.max(offsets + reach - r))
-        free_right = wall_right + float(np.min(offsets - reach + r))
+    if side == 0 or min(free_left if side > 0 else free_right, 0.0) < 0.0:
         side = 1 if free_left > free_right else -1
+    if max(free_left, free_right) < 0.0:
+        return math.inf, math.inf, 0  # no room on either side: the field and the evasion decide
     if side > 0:
         return math.inf, -float(np.max(offsets + reach)), side
     return float(np.min(offsets - reach)), math.inf, side
