@@ -281,8 +281,9 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     it); one that would do so within :data:`STATIC_HORIZON` is refused
     unless every candidate would. When some of the others do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
-    motion, the choice is among those: the robot yields (waits, or goes on
-    beside the person) instead of backing away. The choice is
+    motion, the choice is among those, and among those of them that do not
+    lose ground along ``desired`` if there are any: the robot yields (waits,
+    or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
     obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
     most progress along ``desired``.
@@ -305,13 +306,15 @@ def evade(pose, velocity, command, desired, tracked, points, params):
         allowed = blocked == np.max(blocked)
     paths = _held(paths, q, blocked)
     gaps = obstacle_gaps(paths, tracked, radius)
+    progress = (paths[:, -1] - q) @ desired
     yielding = (targets[:, 0] >= 0.0) & allowed \
         & np.all(obstacle_gaps(paths, tracked, radius, growth=0.0) >= YIELD_MARGIN, axis=1)
     if np.any(yielding):
         allowed = yielding
+        if np.any(yielding & (progress >= 0.0)):
+            allowed = yielding & (progress >= 0.0)  # wait or go on; do not turn back
     contact = _first(gaps < 0.0)
     intrusion = np.maximum(MOVING_MARGIN - gaps, 0.0).sum(axis=1) * ROLLOUT_STEP
-    progress = (paths[:, -1] - q) @ desired
     best = allowed & (contact == np.max(contact[allowed]))
     best &= intrusion <= np.min(intrusion[best]) + INTRUSION_TOLERANCE
     choice = int(np.argmax(np.where(best, progress, -np.inf)))

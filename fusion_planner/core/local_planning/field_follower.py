@@ -103,6 +103,12 @@ BLOCKING_FRACTION = 0.5
 #: carrot is centred.
 KEEP_CLEARANCE = 0.12
 
+#: A static point this close [m] to the robot's boundary is grazed: the
+#: route follower's direction is turned away from it (the field direction plus
+#: the unit vector away from the point), since the band steers but a robot
+#: already grazing a post may only get off it by turning away.
+NEAR_GAP = 0.01
+
 #: Gap [m] the band keeps from the points beside the route even where it is
 #: narrow (the carrot is centred in what is left).
 MIN_WALL_GAP = 0.03
@@ -127,6 +133,7 @@ class _Scene:
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
     beside: np.ndarray = None     # (M',) field points beside the route (route followers)
     carrot: np.ndarray = None     # (2,) the route follower's field goal [m]
+    graze: np.ndarray = None      # (2,) unit vector away from a static point grazed, or None
     blocking: np.ndarray = None   # (B, 2) static points on the route ahead [m]
 
     @property
@@ -583,6 +590,8 @@ class FieldFollower(ControllerBase):
             robot_velocity = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
             force = self._force(q, target, scene,
                                 robot_velocity if self.field == 'improved' else None)
+            if scene.graze is not None:
+                force = force / max(math.hypot(force[0], force[1]), FORCE_EPS) + scene.graze
             norm = math.hypot(force[0], force[1])
             direction = force / norm if norm > FORCE_EPS else None
             plan = self._rollout(q, target, scene, direction)
@@ -614,7 +623,7 @@ class FieldFollower(ControllerBase):
         of the route ahead blocks it and repels as in the paper; the others
         lie beside the route and repel nothing (a passage's walls would hold
         the robot back at its entrance, and their steep, opposed pushes make
-        it weave inside). They bound the free band about the route from the
+        it weave inside); one within :data:`NEAR_GAP` of the robot is grazed. They bound the free band about the route from the
         robot's station to the carrot, the route point ``lookahead`` ahead;
         the carrot is shifted across the route to keep
         :data:`KEEP_CLEARANCE` from them where the band is wide enough, to
@@ -630,14 +639,19 @@ class FieldFollower(ControllerBase):
         p = self.params
         route = self._route
         station = route.station
-        static = len(scene.field_points) - len(scene.tracked) * (
-            PREDICTION_SAMPLES if self.predict and p.prediction_horizon > 0 else 1)
-        on_people = ~off_circles(scene.field_points[:static], scene.circle_centres,
-                                 scene.circle_radii)
-        points = scene.field_points[:static][~on_people]
-        distance, index = route.nearest(points, station - p.robot_radius,
-                                        station + p.lookahead + p.robot_radius)
-        on_route = distance < BLOCKING_FRACTION * p.robot_radius
+        window = (station - p.robot_radius, station + p.lookahead + p.robot_radius)
+        blocking = BLOCKING_FRACTION * p.robot_radius
+        # the band and the braking path are measured on every static scan point, not the
+        # thinned ones of the field: a post's corner a few centimetres away matters here
+        points = points_off_circles(scene.all_points, scene.circle_centres, scene.circle_radii)
+        distance, index = route.nearest(points, *window)
+        on_route = distance < blocking
+        if len(points):
+            away = q - points
+            reach = np.hypot(away[:, 0], away[:, 1])
+            nearest = int(np.argmin(reach))
+            if reach[nearest] - p.robot_radius < NEAR_GAP:
+                scene.graze = away[nearest] / max(reach[nearest], FORCE_EPS)
         scene.blocking = points[on_route]
         side = points[~on_route]
         offsets = route.signed_offsets(side, distance[~on_route], index[~on_route])
@@ -651,12 +665,16 @@ class FieldFollower(ControllerBase):
         wall_right = np.min(-offsets[offsets < 0], initial=math.inf)
         *people, self._passing_side = passing_bounds(route, scene.tracked, wall_left, wall_right,
                                                      p, self._passing_side)
-        # people being passed bound the band, like walls; the evasion check keeps them safe
-        beside = np.zeros(static, bool)
-        beside[~on_people] = ~on_route
-        beside[on_people] = self._passing_side != 0
-        passing = np.full(len(scene.field_points) - static, self._passing_side != 0)
-        scene.beside = np.concatenate([beside, passing])
+        # which points of the field repel; people being passed bound the band, like
+        # walls, and the evasion check keeps them safe
+        static = len(scene.field_points) - len(scene.tracked) * (
+            PREDICTION_SAMPLES if self.predict and p.prediction_horizon > 0 else 1)
+        field = scene.field_points[:static]
+        on_people = ~off_circles(field, scene.circle_centres, scene.circle_radii)
+        beside = route.nearest(field, *window)[0] >= blocking
+        passing = self._passing_side != 0
+        beside = np.where(on_people, passing, beside)
+        scene.beside = np.concatenate([beside, np.full(len(scene.field_points) - static, passing)])
         carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]), people)[0]
         if p.lookahead > MIN_LOOKAHEAD and not segments_clear(q, carrot[None, :], side,
                                                               half_width)[0]:

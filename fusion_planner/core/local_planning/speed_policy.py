@@ -49,8 +49,9 @@ STRAIGHT_TURN = 1e-3
 #: close to a post beside it may drive on past it, not closer.
 PASSING_SLACK = 1e-3
 
-#: ... but never less than this [m]: creeping along a wall a millimetre
-#: closer each step would end in contact.
+#: ... but not below this clearance [m] (nor below the present one when it
+#: is already less): creeping along a wall a millimetre closer each step
+#: would end in contact.
 PASSING_FLOOR = 5e-3
 
 
@@ -141,7 +142,8 @@ def braking_path_gap(pose, route, station, points, blocking, circles, params):
         # driving on past a point at the clearance the robot already has is no contact
         d = points - pose[:2]
         now = math.sqrt(float(np.min(np.einsum('ij,ij->i', d, d))))
-        passing = max(min(clearance, now - PASSING_SLACK), p.robot_radius + PASSING_FLOOR)
+        floor = min(now, p.robot_radius + PASSING_FLOOR)
+        passing = min(clearance, max(now - PASSING_SLACK, floor))
     straight = min(front_gap(pose, points, np.zeros(len(points)), passing),
                    front_gap(pose, circles[:, 0:2], circles[:, 2], clearance))
     return min(along, straight)
