@@ -93,7 +93,8 @@ STOPPED_TURN = 1e-2
 
 #: A static point closer to the route than this fraction of the robot radius
 #: blocks it (the field pushes the robot off the route around it); a point
-#: farther away is beside the route and only pushes across it. The planner
+#: farther away is beside the route and bounds the band the carrot is
+#: centred in (see ``FieldFollower._shape``). The planner
 #: checks clearance at cell resolution, so a route may pass a wall's face a
 #: little closer than the radius: that wall is still beside the route.
 BLOCKING_FRACTION = 0.5
@@ -131,7 +132,7 @@ class _Scene:
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
-    beside: np.ndarray = None     # (M',) field points beside the route (route followers)
+    repelling: tuple = None       # route followers: (points, velocities, weights) that repel
     carrot: np.ndarray = None     # (2,) the route follower's field goal [m]
     graze: np.ndarray = None      # (2,) unit vector away from a static point grazed, or None
     blocking: np.ndarray = None   # (B, 2) static points on the route ahead [m]
@@ -386,19 +387,13 @@ class FieldFollower(ControllerBase):
         if self.field == 'classic':
             return force + apf.classic_repulsive_force(                            # eq. (14)
                 q, scene.field_points, ap, scene.field_weights, check=False)
-        which = slice(None) if scene.beside is None else ~scene.beside
-        return force + self._repulsion(q, goal, scene, robot_velocity, which)
-
-    def _repulsion(self, q, goal, scene, robot_velocity, which):
-        """Eqs. (15)-(16), plus (17) given the robot's velocity, of the field points ``which``."""
-        ap = self.params.apf
-        points, weights = scene.field_points[which], scene.field_weights[which]
-        force = apf.improved_repulsive_force(q, goal, points, ap, weights,          # eqs. (15)-(16)
-                                             check=False)
+        points, velocities, weights = scene.repelling or (
+            scene.field_points, scene.field_velocities, scene.field_weights)
+        force = force + apf.improved_repulsive_force(                              # eqs. (15)-(16)
+            q, goal, points, ap, weights, check=False)
         if robot_velocity is not None:
             force = force + apf.velocity_repulsion(                                 # eq. (17)
-                q, robot_velocity, points, scene.field_velocities[which], ap, weights,
-                check=False)
+                q, robot_velocity, points, velocities, ap, weights, check=False)
         return force
 
     def _rollout(self, q, target, scene, first_direction):
@@ -620,7 +615,9 @@ class FieldFollower(ControllerBase):
         """Shape the field by the route: split the static points, place the carrot.
 
         A static point within :data:`BLOCKING_FRACTION` of the robot radius
-        of the route ahead blocks it and repels as in the paper; the others
+        of the route ahead blocks it and repels as in the paper (within the
+        whole radius where the points on either side leave the robot no room
+        to pass: the route is closed there, see :meth:`_route_fits`); the others
         lie beside the route and repel nothing (a passage's walls would hold
         the robot back at its entrance, and their steep, opposed pushes make
         it weave inside); one within :data:`NEAR_GAP` of the robot is grazed. They bound the free band about the route from the
@@ -643,8 +640,14 @@ class FieldFollower(ControllerBase):
         blocking = BLOCKING_FRACTION * p.robot_radius
         # the band and the braking path are measured on every static scan point, not the
         # thinned ones of the field: a post's corner a few centimetres away matters here
-        points = points_off_circles(scene.all_points, scene.circle_centres, scene.circle_radii)
+        points = scene.all_points
+        d = points - q
+        reach = math.hypot(*(route.point_at(station) - q)) + p.lookahead + 2.0 * p.robot_radius
+        points = points[np.einsum('ij,ij->i', d, d) <= reach * reach]
+        points = points_off_circles(points, scene.circle_centres, scene.circle_radii)
         distance, index = route.nearest(points, *window)
+        if not self._route_fits(route.signed_offsets(points, distance, index), index):
+            blocking = p.robot_radius  # what narrows the route below the robot blocks it
         on_route = distance < blocking
         if len(points):
             away = q - points
@@ -673,8 +676,10 @@ class FieldFollower(ControllerBase):
         on_people = ~off_circles(field, scene.circle_centres, scene.circle_radii)
         beside = route.nearest(field, *window)[0] >= blocking
         passing = self._passing_side != 0
-        beside = np.where(on_people, passing, beside)
-        scene.beside = np.concatenate([beside, np.full(len(scene.field_points) - static, passing)])
+        beside = np.concatenate([np.where(on_people, passing, beside),
+                                 np.full(len(scene.field_points) - static, passing)])
+        scene.repelling = (scene.field_points[~beside], scene.field_velocities[~beside],
+                           scene.field_weights[~beside])
         carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]), people)[0]
         if p.lookahead > MIN_LOOKAHEAD and not segments_clear(q, carrot[None, :], side,
                                                               half_width)[0]:
@@ -684,6 +689,21 @@ class FieldFollower(ControllerBase):
             clear = np.append(segments_clear(q, carrots[:-1], side, half_width), True)
             carrot = carrots[int(np.argmax(clear))]
         scene.carrot = carrot
+
+    def _route_fits(self, offsets, index):
+        """Whether the robot fits between the points on either side of the route ahead.
+
+        ``offsets`` [m] are the signed distances of the static points from
+        the route, ``index`` their nearest route points; only those beside
+        the route between the robot's station and ``lookahead`` ahead count.
+        """
+        p = self.params
+        route = self._route
+        inside = (index > route.index_at(route.station)) \
+            & (index < route.index_at(route.station + p.lookahead))
+        left = np.min(offsets[inside & (offsets > 0)], initial=math.inf)
+        right = np.min(-offsets[inside & (offsets < 0)], initial=math.inf)
+        return left + right >= 2.0 * p.robot_radius
 
     def _centred_carrots(self, offsets, index, lookaheads, people):
         """The route points ``lookaheads`` (C,) [m] ahead, each shifted across the free band to it.
