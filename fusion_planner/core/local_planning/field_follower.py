@@ -14,8 +14,9 @@ prediction of tracked obstacles and escape from local minima. Each step
 2. the *sub-goal*: key nodes are passed when reached or when a later one is
    visible with ``sight_clearance`` to spare;
 3. the *direction*: the total force at the robot, attracted to a carrot at
-   most ``lookahead`` ahead, or the boundary tangent while escaping (see
-   :mod:`fusion_planner.core.local_planning.escape`);
+   most ``lookahead`` ahead (for fusion, on the route and centred in its free
+   band, see :meth:`FieldFollower._shape`), or the boundary tangent while
+   escaping (see :mod:`fusion_planner.core.local_planning.escape`);
 4. the *command*: heading control under the speed caps (adaptive step of
    eq. (18), approach, braking), then, with prediction, the evasion check of
    :mod:`fusion_planner.core.local_planning.evasion`, then the velocity and acceleration
@@ -538,11 +539,13 @@ class FieldFollower(ControllerBase):
         Returns
         -------
         Command
-            ``'no_path'`` before a plan; ``'arrived'`` inside the goal
-            tolerance (braking to rest); ``'failed'`` after an escape timed out
-            (or at the first minimum without escape), until a new path or a
-            reset; otherwise ``'moving'``, or ``'stuck_escaping'`` while an
-            escape episode is open.
+            ``'no_path'`` before a plan, or once a replan proved the goal
+            unreachable and the robot stands still; ``'arrived'`` inside the
+            goal tolerance (braking to rest); ``'failed'`` after
+            ``escape_time_limit`` without progress toward the goal (or at the
+            first minimum without escape), until a new path or a reset;
+            otherwise ``'moving'``, or ``'stuck_escaping'`` while an escape
+            episode is open or the robot brakes for a proven ``'no_path'``.
 
         Raises
         ------
