@@ -85,6 +85,9 @@ ROLLOUT_MAX_STEP = 0.2
 #: A force shorter than this has no direction: the robot stops (a minimum).
 FORCE_EPS = 1e-9
 
+#: Shortest time [s] between two replans asked for because the route is blocked.
+BLOCKED_REPLAN_PERIOD = 2.0
+
 #: Replanning outcomes that prove the goal unreachable around what was seen.
 UNREACHABLE = (NoValidPathCouldBeFound, GoalOccupied)
 
@@ -225,6 +228,7 @@ class FieldFollower(ControllerBase):
         self._monitor = ProgressMonitor(p.stuck_progress)
         self._unreachable = None  # why the goal cannot be reached, once a replan proved it
         self._passing_side = 0    # side kept for the people on the route (see yielding)
+        self._last_replan = -math.inf  # when a new plan was last asked for [s]
         self._plan_route = self._route = None
         if self.use_key_nodes and self._path is not None:
             self._set_plan_route()
@@ -499,8 +503,28 @@ class FieldFollower(ControllerBase):
         self._follow = BoundaryFollow()
         return None
 
+    def _route_blocked(self, obs, scene):
+        """Whether to replan now: static points the map did not show block the route just ahead.
+
+        Like a navigation stack whose path is blocked, fusion with a
+        replanner asks for a new plan as soon as a static point lies on the
+        route within ``lookahead`` ahead, instead of waiting to be stuck in
+        front of it; at most once per :data:`BLOCKED_REPLAN_PERIOD`, and not
+        while escaping.
+        """
+        p = self.params
+        route = self._route
+        if (self._replan is None or self._follow is not None or self._episode is not None
+                or len(scene.blocking) == 0
+                or obs.time - self._last_replan < BLOCKED_REPLAN_PERIOD):
+            return False
+        ahead = route.along_to_first(scene.blocking, route.station, route.station + p.lookahead,
+                                     p.robot_radius + p.safety_distance)
+        return math.isfinite(ahead)
+
     def _replan_now(self, obs, q, scene):
         """Ask for a global plan around everything seen so far; True on success."""
+        self._last_replan = obs.time
         self._remember(obs, scene, force=True)
         goal = self._key_nodes[-1].copy()
         try:
@@ -578,11 +602,13 @@ class FieldFollower(ControllerBase):
         direction, reason = self._escape_direction(obs, scene)
         if reason is not None:
             return self._fail(obs, reason, target.copy())
-        if self._unreachable is not None:
-            return self._stop_unreachable(obs)
-        target = self._key_nodes[self._index]  # an escape step may have changed it
         if self._route is not None:
             self._shape(scene, q)
+            if self._route_blocked(obs, scene) and self._replan_now(obs, q, scene):
+                self._shape(scene, q)  # around what blocked the old route
+        if self._unreachable is not None:
+            return self._stop_unreachable(obs)
+        target = self._key_nodes[self._index]  # an escape step or a replan may have changed it
         if self._follow is None:
             yaw = obs.pose[2]
             robot_velocity = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
