@@ -446,7 +446,7 @@ def test_fusion_asks_for_a_new_plan_when_the_path_is_blocked():
     run = simulate(controller, (0.0, 0.0, 0.0), [8.0, 0.0], blocker, duration=60.0)
     assert reached(run), run.final
     assert calls and calls[0] > 0                     # the blocking points were remembered
-    assert controller.replans >= 1 and controller.stuck_events >= 1
+    assert controller.replans >= 1 and controller.stuck_events == 0   # before being stuck
     assert run.min_static_clearance > 0
 
 

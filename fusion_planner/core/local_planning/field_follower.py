@@ -85,6 +85,11 @@ ROLLOUT_MAX_STEP = 0.2
 #: A force shorter than this has no direction: the robot stops (a minimum).
 FORCE_EPS = 1e-9
 
+#: A route follower this close [m] to a tracked obstacle is giving way: a
+#: lack of progress then is no local minimum (the time without progress
+#: still counts toward ``escape_time_limit``).
+GIVING_WAY_GAP = 0.5
+
 #: Shortest time [s] between two replans asked for because the route is blocked.
 BLOCKED_REPLAN_PERIOD = 2.0
 
@@ -539,7 +544,9 @@ class FieldFollower(ControllerBase):
                 if self.no_path_proven_at is None:
                     self.no_path_proven_at = obs.time
             return False
-        self._path, self._key_nodes = path, key_nodes
+        # the planner ends at the goal's cell centre; the goal stays the one asked for
+        self._path = np.vstack([path[:-1], goal])
+        self._key_nodes = np.vstack([key_nodes[:-1], goal])
         self._index = 0
         self._set_plan_route()
         self._route.project(q)
@@ -806,6 +813,9 @@ class FieldFollower(ControllerBase):
         if (episode is not None and not episode.skipped and episode.replans == 0
                 and target_distance < episode.target_distance - p.stuck_progress):
             self._episode = None  # progress again after boundary following
+        if self._waiting_for_people(q, scene):
+            self._progress.clear()  # giving way is not a local minimum (time still counts)
+            return None, None
         before = self._progress.push(obs.time, target_distance)
         if before is None or before - target_distance >= p.stuck_progress:
             return None, None
@@ -814,6 +824,15 @@ class FieldFollower(ControllerBase):
             return None, reason
         target = self._key_nodes[self._index]
         return self._follow.direction(q, target, scene.field_points, scene.field_weights, p), None
+
+    def _waiting_for_people(self, q, scene):
+        """Whether a route follower is giving way: keeping to a side, or a person close by."""
+        if self._route is None or len(scene.tracked) == 0:
+            return False
+        if self._passing_side != 0:
+            return True
+        gaps = np.hypot(*(scene.circle_centres - q).T) - scene.circle_radii - self.params.robot_radius
+        return bool(np.min(gaps) < GIVING_WAY_GAP)
 
     def _field_command(self, obs, scene, direction, goal_distance):
         """Heading control along ``direction`` under the speed caps: ``(v, omega)``.
