@@ -141,6 +141,7 @@ class _Scene:
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
+                                  # (not measured for a route follower)
     repelling: tuple = None       # route followers: (points, velocities, weights) that repel
     carrot: np.ndarray = None     # (2,) the route follower's field goal [m]
     graze: np.ndarray = None      # (2,) unit vector away from a static point grazed, or None
@@ -291,7 +292,8 @@ class FieldFollower(ControllerBase):
                       field_velocities=np.vstack([np.zeros_like(thinned), velocities]),
                       field_weights=np.concatenate([np.ones(len(thinned)), weights]),
                       all_points=points, tracked=tracked,
-                      nearest_ahead=self._nearest_ahead(obs.pose, thinned, tracked))
+                      nearest_ahead=(math.inf if self._route is not None  # braking path instead
+                                     else self._nearest_ahead(obs.pose, thinned, tracked)))
 
     def _tracked_field(self, obs, tracked):
         """Field points of the tracked obstacles: nearest surface points at predicted positions.
