@@ -95,6 +95,11 @@ STATIC_HORIZON = 1.0
 #: a robot that has pulled to the side is let pass.
 YIELD_MARGIN = 0.02
 
+#: ... and that keeps clear of the grown obstacles for this long [s]: the
+#: prediction's uncertainty is not ignored, only not extrapolated so far that
+#: backing away always looks safer.
+YIELD_SAFE_TIME = 1.0
+
 #: Fastest reverse speed of an evasion, as a fraction of ``max_speed``.
 REVERSE_FRACTION = 0.5
 
@@ -281,7 +286,8 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     it); one that would do so within :data:`STATIC_HORIZON` is refused
     unless every candidate would. When some of the others do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
-    motion, the choice is among those, and among those of them that do not
+    motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
+    choice is among those, and among those of them that do not
     lose ground along ``desired`` if there are any: the robot yields (waits,
     or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
@@ -307,7 +313,8 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     paths = _held(paths, q, blocked)
     gaps = obstacle_gaps(paths, tracked, radius)
     progress = (paths[:, -1] - q) @ desired
-    yielding = (targets[:, 0] >= 0.0) & allowed \
+    soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
+    yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
         & np.all(obstacle_gaps(paths, tracked, radius, growth=0.0) >= YIELD_MARGIN, axis=1)
     if np.any(yielding):
         allowed = yielding
