@@ -43,9 +43,10 @@ setup(
     entry_points={
         'console_scripts': [
             'fusion-planner = fusion_planner.cli.main:main',
-            'global_planner = fusion_planner.ros.global_planner:main',
-            'local_planner = fusion_planner.ros.local_planner:main',
-            'simulator = fusion_planner.ros.simulator:main',
+            # checks ROS 2 first (one line, exit 2 without it), then runs the node's main
+            'global_planner = fusion_planner.ros.executables:global_planner',
+            'local_planner = fusion_planner.ros.executables:local_planner',
+            'simulator = fusion_planner.ros.executables:simulator',
         ],
     },
 )

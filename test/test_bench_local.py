@@ -11,6 +11,7 @@ import pytest
 from fusion_planner.bench import local
 from fusion_planner.cli.bench_command import TARGETS
 from fusion_planner.cli.main import main
+from fusion_planner.cli.requirements import missing
 
 
 def test_target_is_registered():
@@ -19,7 +20,7 @@ def test_target_is_registered():
 
 @pytest.mark.parametrize('inputs', [['--no-ros'], []])
 def test_quick_run_structure(capsys, inputs):
-    if not inputs and not local.ros_available()[0]:
+    if not inputs and missing('ros', 'bench local') is not None:
         pytest.skip('ROS 2 not importable')
     status = main(['bench', 'local', '--quick', '--json', *inputs])
     report = json.loads(capsys.readouterr().out)

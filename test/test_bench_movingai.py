@@ -134,11 +134,12 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, argv, message):
     assert len(err.strip().splitlines()) == 1
 
 
-def test_missing_default_folder_says_where_the_data_is_expected(monkeypatch, tmp_path, capsys):
+def test_missing_default_folder_says_where_to_get_the_data(monkeypatch, tmp_path, capsys):
     monkeypatch.setenv(movingai.DATA_ENV, str(tmp_path / 'absent'))
     status, _, err = _run(capsys, '--no-progress')
-    assert status == 2
-    assert 'shared/benchmarks/movingai' in err and str(tmp_path / 'absent') in err
+    assert status == 2 and len(err.strip().splitlines()) == 1
+    assert movingai.DATA_URL in err and str(tmp_path / 'absent') in err
+    assert '--maps DIR' in err and movingai.DATA_ENV in err
 
 
 def test_missing_map_beside_a_scenario_file(tmp_path, capsys):
@@ -146,3 +147,12 @@ def test_missing_map_beside_a_scenario_file(tmp_path, capsys):
     (tmp_path / 'tiny.map').unlink()
     status, _, err = _run(capsys, '--maps', str(tmp_path), '--no-progress')
     assert status == 2 and 'tiny.map' in err
+
+
+def test_bench_refine_without_the_maps_says_where_to_get_them(monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv(movingai.DATA_ENV, str(tmp_path / 'absent'))
+    status = main(['bench', 'refine', '--repeats', '1'])
+    out, err = capsys.readouterr()
+    assert status == 2 and out == ''  # refused before refining anything
+    assert len(err.strip().splitlines()) == 1
+    assert movingai.DATA_URL in err and '--quick' in err

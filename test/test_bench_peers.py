@@ -73,9 +73,7 @@ def test_quick_run_structure(quick_random):
     assert [s['suite'] for s in report['scenarios']] == ['random']
     ran = {row['planner'] for row in report['rows']}
     assert set(peers.OURS) <= ran
-    for name in ('pyastar2d', 'tcod', 'pathfinding', 'networkx'):
-        # Either it ran or the notes say why not.
-        assert name in ran or any(peers.PLANNERS[name].label in n for n in report['notes'])
+    assert {'pyastar2d', 'tcod', 'pathfinding', 'networkx'} <= ran  # asked for: all ran
     for row in report['rows']:
         assert row['pairs'] == row['found'] == row['valid'] >= 1
         assert row['cpu_median_ms'] >= 0 and row['time_median_ms'] >= 0
@@ -109,15 +107,33 @@ def test_cutting_optimum_matches_scipy():
     assert got <= _independent_optimum(free, (0, 0), (23, 23)) + LENGTH_TOL
 
 
-def test_missing_peer_is_skipped_with_a_note(monkeypatch, capsys):
-    monkeypatch.setattr(peers, 'peer_available',
-                        lambda name: (False, 'not installed (test)'))
+def test_a_missing_peer_stops_the_run_before_it_starts(monkeypatch, capsys):
+    monkeypatch.setitem(peers.PEER_MODULES, 'pyastar2d', 'fusion_planner_no_such_peer')
     status = main(['bench', 'peers', '--quick', '--suites', 'random', '--no-progress',
                    '--planners', 'astar', 'pyastar2d'])
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
+    assert status == 2 and out == ''
+    assert err.count('\n') == 1 and "pip install 'fusion_planner[bench]'" in err
+    assert 'fusion_planner_no_such_peer' in err and '--planners' in err
+
+
+def test_without_movingai_maps_the_default_suites_run_the_others(monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv(peers.movingai_bench.DATA_ENV, str(tmp_path / 'absent'))
+    status = main(['bench', 'peers', '--quick', '--no-progress', '--json', '--planners', 'astar'])
+    report = json.loads(capsys.readouterr().out)
     assert status == 0
-    assert 'pyastar2d skipped: not installed (test)' in out
-    assert 'ours A*-8' in out
+    assert report['suites'] == ['random', 'nav2']
+    assert any('movingai suite left out' in note and str(tmp_path / 'absent') in note
+               for note in report['notes'])
+
+
+def test_movingai_asked_for_by_name_without_maps_is_bad_input(monkeypatch, tmp_path, capsys):
+    monkeypatch.setenv(peers.movingai_bench.DATA_ENV, str(tmp_path / 'absent'))
+    status = main(['bench', 'peers', '--quick', '--no-progress', '--suites', 'movingai',
+                   '--planners', 'astar'])
+    out, err = capsys.readouterr()
+    assert status == 2 and out == ''
+    assert err.count('\n') == 1 and 'movingai.com' in err
 
 
 def test_valid_path_checks_the_corner_rule():

@@ -19,6 +19,7 @@ would make the plan here differ from the core's (reported upstream).
 import math
 import os
 import pathlib
+import re
 import signal
 import subprocess
 import sys
@@ -425,6 +426,10 @@ def test_demo_command_runs_headless_prints_the_outcome_and_draws(scenario_path, 
     for field in ('sim time:', 'path length:', 'collisions: 0', 'min clearance:'):
         assert field in outcome
     assert 'distance to goal' in done.stderr  # the progress line
+    # stderr is not a terminal: whole progress lines, the last one at the outcome's time
+    assert '\r' not in done.stderr
+    progress_times = re.findall(r'^ {2}sim +(\d+\.\d\d) s', done.stderr, flags=re.M)
+    assert progress_times[-1] == re.search(r'sim time: (\d+\.\d\d) s', outcome).group(1)
     assert picture.stat().st_size > 10_000
     assert 'Traceback' not in done.stderr
 

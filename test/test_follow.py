@@ -508,7 +508,7 @@ def test_make_controller_names_and_refusals():
         controller = make_controller(name, FollowerParams())
         assert controller.stuck_events == 0
     with pytest.raises(InvalidInput):
-        make_controller('dwa', FollowerParams())
+        make_controller('teleport', FollowerParams())
     with pytest.raises(InvalidInput):
         make_controller('fusion', {'max_speed': 1.0})
     with pytest.raises(InvalidInput):

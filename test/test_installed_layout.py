@@ -119,3 +119,20 @@ def test_installed_simulator_runs_like_ros2_run_and_stops_on_sigint(install, tmp
     text = log_path.read_text()
     assert code == 0, text[-3000:]
     assert 'Traceback' not in text, text[-3000:]
+
+
+@pytest.mark.parametrize('name', EXECUTABLES)
+def test_installed_executable_without_ros_says_so_in_one_line(install, tmp_path, name):
+    """``ros2 run fusion_planner <node>`` on a Python where ROS 2 does not import."""
+    site = next((install / 'lib').glob('python3*/site-packages'))
+    env = dict(os.environ)
+    env['AMENT_PREFIX_PATH'] = os.pathsep.join(
+        filter(None, [str(install), env.get('AMENT_PREFIX_PATH')]))
+    env['PYTHONPATH'] = os.pathsep.join([str(REPO / 'test' / 'core_only'), str(site)])
+    env.pop('FUSION_PLANNER_BLOCKED', None)
+    done = subprocess.run([str(install / 'lib' / PACKAGE / name), '--ros-args'],
+                          capture_output=True, text=True, env=env, cwd=tmp_path,
+                          timeout=NODE_START_TIMEOUT_S)
+    assert done.returncode == 2, done.stderr[-3000:]
+    assert done.stderr.count('\n') == 1 and 'Traceback' not in done.stderr
+    assert done.stderr.startswith(f'{name}: error: ') and 'ros' in done.stderr

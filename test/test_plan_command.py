@@ -299,9 +299,19 @@ def test_plot_writes_a_png(capsys, tmp_path):
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
 
 
-def test_plot_into_a_missing_folder_is_bad_input(capsys, tmp_path):
+def test_plot_into_a_missing_folder_creates_it(capsys, tmp_path):
     png = tmp_path / 'no' / 'such' / 'plan.png'
     status, _, err = run_cli(capsys, 'plan', '--map', PAPER_YAML, '--start', '1.5', '1.5',
                              '--goal', '19.5', '19.5', '--plot', str(png))
-    assert status == 2
+    assert status == 0, err
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+def test_plot_below_a_file_is_refused_before_planning(capsys, tmp_path):
+    (tmp_path / 'taken').write_text('a file')
+    status, out, err = run_cli(capsys, 'plan', '--map', PAPER_YAML, '--start', '1.5', '1.5',
+                               '--goal', '19.5', '19.5', '--plot',
+                               str(tmp_path / 'taken' / 'plan.png'))
+    assert status == 2 and out == ''  # nothing planned
     assert_one_line_error(err)
+    assert 'is not a folder' in err

@@ -120,6 +120,23 @@ def test_expanded_cells_are_grey(drawn):
     np.testing.assert_allclose(image[pr, pc, :3], expected, atol=0.05)
 
 
+def test_legend_names_the_searched_cells_in_their_grey(drawn):
+    _, _, fig, _ = drawn
+    legend = fig.axes[0].get_legend()
+    entries = dict(zip([t.get_text() for t in legend.get_texts()], legend.legend_handles))
+    assert {'searched cells', 'path', 'key nodes', 'start', 'goal'} <= set(entries)
+    np.testing.assert_allclose(entries['searched cells'].get_facecolor()[:3],
+                               plotting.EXPANDED_RGB)
+
+
+def test_no_searched_cells_entry_without_searched_cells(tmp_path):
+    grid = _map()
+    result = GlobalPlanner(grid, PlannerConfig()).plan((-1.75, 2.25), (5.25, 5.25))
+    fig = plotting.plot_plan(result, grid, tmp_path / 'plan.png')
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert 'searched cells' not in labels and 'path' in labels
+
+
 def test_draw_grid_uses_metres_origin_and_unknown_grey(tmp_path):
     occupied = np.zeros((4, 6), bool)
     occupied[0, 0] = True

@@ -48,3 +48,27 @@ def test_terminal_line_is_rewritten_in_place_and_fractions_show_percent():
     assert text.count('\r') == 2 and 'ETA' in text
     with pytest.raises(ValueError, match='positive'):
         Progress(0, 'empty')
+
+
+def test_status_lines_in_a_log_are_whole_lines_at_the_log_rate(monkeypatch):
+    clock = iter([0.0, 0.25, 10.0, progress_module.LOG_PERIOD_S + 0.1, 40.0])
+    monkeypatch.setattr(progress_module.time, 'monotonic', lambda: next(clock))
+    log = io.StringIO()
+    line = progress_module.StatusLine(log)
+    shown = [line.show(f'sim {t} s') for t in (0, 1, 2, 3)] + [line.show('final', force=True)]
+    line.close()
+    assert shown == [True, False, False, True, True]
+    assert log.getvalue() == 'sim 0 s\nsim 3 s\nfinal\n'
+    assert '\r' not in log.getvalue()
+
+
+def test_status_line_on_a_terminal_is_redrawn_in_place_and_ended_once():
+    tty = Tty()
+    line = progress_module.StatusLine(tty)
+    line.show('first', force=True)
+    line.show('second', force=True)
+    line.close()
+    line.close()
+    text = tty.getvalue()
+    assert text.count('\r') == 2 and text.count('\n') == 1 and text.endswith('\n')
+    assert text.split('\r')[2].rstrip() == 'second'

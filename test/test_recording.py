@@ -144,11 +144,14 @@ def test_recorder_writes_what_was_published(context, tmp_path):
     assert xs == sorted(xs) and xs[0] == 0.0 and len(xs) == counts['/rec_odom']
 
 
-def test_without_the_mcap_library_the_demo_goes_on_unrecorded(monkeypatch, tmp_path, capsys):
-    monkeypatch.setitem(sys.modules, 'mcap.writer', None)  # import fails
-    assert demo_command.start_recording(None, tmp_path / 'run.mcap') is None
-    assert "install the record extra" in capsys.readouterr().err
-    assert not (tmp_path / 'run.mcap').exists()
+def test_without_the_mcap_library_the_demo_refuses_before_it_starts(monkeypatch, tmp_path,
+                                                                     capsys):
+    monkeypatch.setitem(sys.modules, 'mcap', None)  # import fails
+    status = main(['demo', '--plot', str(tmp_path / 'out' / 'run.png'), '--no-plot', '--no-gif'])
+    out, err = capsys.readouterr()
+    assert status == 2 and out == ''
+    assert err.count('\n') == 1 and "pip install 'fusion_planner[record]'" in err
+    assert '--no-record' in err and not (tmp_path / 'out').exists()
 
 
 # -- the demo's recording ----------------------------------------------------------------

@@ -104,7 +104,7 @@ def test_bad_scenario_files_exit_2_with_one_line(capsys, room, changes, words):
 
 
 @pytest.mark.parametrize('argv, words', [
-    (['--scenario', 'SCEN', '--controller', 'dwa'], 'unknown controller'),
+    (['--scenario', 'SCEN', '--controller', 'teleport'], 'unknown controller'),
     (['--scenario', '/no/such/file.yaml'], 'cannot read'),
     ([], 'exactly one of'),
     (['--scenario', 'SCEN', '--random', '2'], 'exactly one of'),
@@ -147,7 +147,7 @@ def test_batch_json_and_progress(capsys):
 def test_batch_table_lists_every_controller(capsys):
     code, out, _ = run_cli(capsys, '--random', '1', '--seed', '3')
     assert code == 0
-    for name in ('fusion', 'apf', 'classic-apf', 'astar-track'):
+    for name in ('fusion', 'apf', 'classic-apf', 'dwa', 'astar-track'):
         assert f'| {name} |' in out
 
 

@@ -133,7 +133,7 @@ def test_same_seed_same_trajectory():
 
 def test_unknown_controller_is_refused():
     with pytest.raises(InvalidInput):
-        run_episode(scenario('fig5a'), 'dwa')
+        run_episode(scenario('fig5a'), 'teleport')
 
 
 def _corridor(unknown=(), time_limit=60.0, max_collisions=10):
@@ -284,4 +284,4 @@ def test_a_family_batch_labels_its_rows():
 
 
 def test_all_controllers_are_known():
-    assert set(CONTROLLERS) == {'fusion', 'apf', 'classic-apf', 'astar-track'}
+    assert set(CONTROLLERS) == {'fusion', 'apf', 'classic-apf', 'dwa', 'astar-track'}

@@ -20,7 +20,8 @@ Notes
   (``conversions.scan_to_points``) at :data:`SCAN_RATE_HZ`; the moving
   obstacles become a ``MarkerArray`` fed to an ``ObstacleTracker``, which
   estimates their velocities. Without ROS 2 the world's own scan points and
-  ideal tracks are used (noted in the report).
+  ideal tracks are used with ``--no-ros`` (noted in the report); otherwise
+  ROS 2 (the ``ros`` extra or a sourced install) is checked before the run.
 - Timed with the CPU clock of this process (``time.process_time``): the
   *step* is the tracker query, the ``Observation`` and ``compute``, what the
   node's control timer runs besides publishing; *scan* and *track* are the
@@ -29,8 +30,10 @@ Notes
   planner needs at :data:`CONTROL_RATE_HZ` with scans at
   :data:`SCAN_RATE_HZ` (message transport excluded).
 - The demo runs ``fusion-planner demo --real-time-factor F`` in a child
-  process and reads its outcome line: the factor it reached from the first
-  clock tick to arrival, and the child's CPU time (start-up included).
+  process, with its default outputs (picture, animation, recording: the
+  ``plot`` and ``record`` extras, checked before the run, as ROS 2 is), and
+  reads its outcome line: the factor it reached from the first clock tick
+  to arrival, and the child's CPU time (start-up and drawing included).
 """
 
 import json
@@ -48,6 +51,7 @@ import numpy as np
 
 from fusion_planner.bench.movingai import _strict
 from fusion_planner.bench.peers import machine_summary
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.local_planning import follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.simulation.scenario import Limits, RandomScenarioConfig, random_scenario
@@ -75,8 +79,8 @@ DEFAULT_DEMO_FACTOR = 100.0
 DEMO_TIMEOUT_S = 600.0
 #: Quick mode (tests): timed steps.
 QUICK_STEPS = 40
-#: Targets of issue 6: median step [ms], load at 50 Hz [fraction of a core],
-#: demo real-time factor.
+#: Targets: median step [ms], load at 50 Hz [fraction of a core], demo
+#: real-time factor.
 TARGET_STEP_MS = 1.0
 TARGET_LOAD = 0.10
 TARGET_DEMO_FACTOR = 10.0
@@ -307,17 +311,8 @@ def measure_demo(factor, timeout_s=DEMO_TIMEOUT_S):
     return dict(result, cpu_s=cpu, **outcome)
 
 
-def ros_available():
-    """``(True, '')`` when the ROS 2 messages import, else ``(False, reason)``."""
-    try:
-        import fusion_planner.ros.conversions  # noqa: F401 - imports ROS 2 messages
-    except ImportError as err:
-        return False, f'ROS 2 not importable ({err})'
-    return True, ''
-
-
 def evaluate_targets(steps, demo):
-    """Verdicts on the local-planner targets of issue 6 (see peers.evaluate_targets)."""
+    """Verdicts on the local-planner targets (see peers.evaluate_targets)."""
     verdicts = []
     if steps is not None:
         median = steps['step_ms']['median']
@@ -376,7 +371,7 @@ def format_report(steps, demo, verdicts, notes):
                          f'{demo["sim_time_s"]:.1f} s simulated, wall {demo["wall_s"]:.1f} s, '
                          f'child CPU {demo["cpu_s"]:.1f} s (start-up included); arrived '
                          f'{"yes" if demo["arrived"] else "no"}')
-    lines += ['', 'targets of issue 6:']
+    lines += ['', 'targets:']
     lines += [f'  [{v["status"]}] {v["target"]}: {v["detail"]}' for v in verdicts]
     return '\n'.join(lines)
 
@@ -405,20 +400,27 @@ def run(args):
     ------
     InvalidInput
         Bad options.
+    MissingExtra
+        ROS 2 not importable, unless ``--no-ros`` and no demo run; for the
+        demo run, the ``plot`` or ``record`` extra missing (before any
+        work).
     """
     steps_wanted = QUICK_STEPS if args.quick else args.steps
     if steps_wanted < 1:
         raise InvalidInput(f'--steps must be positive, got {steps_wanted}')
     if not (args.demo_factor > 0 and math.isfinite(args.demo_factor)):
         raise InvalidInput(f'--demo-factor must be a positive number, got {args.demo_factor!r}')
+    run_demo = not (args.quick or args.no_demo)
+    if run_demo or not args.no_ros:
+        require('ros', 'bench local', alternative='give --no-ros --no-demo')
+    if run_demo:
+        for extra in ('plot', 'record'):  # the demo writes its default outputs
+            require(extra, 'bench local (its demo run)', alternative='give --no-demo')
     notes = []
-    use_ros, reason = (False, 'asked (--no-ros)') if args.no_ros else ros_available()
-    if not use_ros:
-        notes.append(f'inputs from the world, not from ROS messages: {reason}')
-    steps = measure_steps(steps_wanted, args.seed, use_ros)
-    demo = None
-    if not (args.quick or args.no_demo):
-        demo = measure_demo(args.demo_factor)
+    if args.no_ros:
+        notes.append('inputs from the world, not from ROS messages: asked (--no-ros)')
+    steps = measure_steps(steps_wanted, args.seed, use_ros=not args.no_ros)
+    demo = measure_demo(args.demo_factor) if run_demo else None
     verdicts = evaluate_targets(steps, demo)
     if args.json:
         print(json.dumps(_strict({'machine': machine_summary(), 'notes': notes, 'steps': steps,

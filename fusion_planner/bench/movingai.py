@@ -52,6 +52,8 @@ LABELS = {'astar': 'A*-8', 'dijkstra': 'Dijkstra', 'improved': 'improved A*'}
 #: Largest accepted gap to the file's ``optimal_length`` [cells]; the file
 #: rounds to 8 decimals, so 1e-4 leaves room for summation order only.
 OPTIMAL_TOLERANCE = 1e-4
+#: Where the maps and scenarios are published.
+DATA_URL = 'https://www.movingai.com/benchmarks/grids.html'
 #: Environment variable that overrides the default data folder.
 DATA_ENV = 'FUSION_PLANNER_BENCHMARKS'
 #: Seed of the shuffled row order (the order only affects the ETA).
@@ -162,6 +164,22 @@ def default_data_dir():
     return repository.parent / 'shared' / 'benchmarks' / 'movingai'
 
 
+def missing_data(where, alternative=None):
+    """The :class:`MapError` of MovingAI data that is not there, saying where to get it.
+
+    Parameters
+    ----------
+    where : str or os.PathLike
+        The missing folder or file.
+    alternative : str, optional
+        Another way out, e.g. ``'give --quick'``.
+    """
+    other = f', or {alternative}' if alternative else ''
+    return MapError(f'MovingAI benchmark data {where} not found: put the maps and their '
+                    f'scenarios (NAME.map, NAME.map.scen from {DATA_URL}) in a folder and give '
+                    f'--maps DIR (or set {DATA_ENV}){other}')
+
+
 def sample_rows(rows, count=None):
     """Pick ``count`` rows spread evenly over the difficulty buckets.
 
@@ -221,10 +239,7 @@ def find_scenario_sets(folder, rows_per_map=None, only=None):
     """
     folder = pathlib.Path(folder)
     if not folder.is_dir():
-        raise MapError(
-            f'MovingAI benchmark folder {folder} not found; the data is expected in '
-            f'../shared/benchmarks/movingai beside the repository, or give --maps DIR '
-            f'(or set {DATA_ENV})')
+        raise missing_data(folder)
     scen_paths = sorted(folder.glob('*.map.scen'))
     if not scen_paths:
         raise MapError(f'no MovingAI scenario file (*.map.scen) in {folder}')

@@ -33,7 +33,9 @@ import sys
 from dataclasses import asdict, dataclass, replace
 
 from fusion_planner.bench import paper_map
+from fusion_planner.cli.output_paths import prepare_folder
 from fusion_planner.cli.plotting import plan_title, plot_plan
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.map_files import load_map
@@ -186,10 +188,20 @@ def add_arguments(parser):
 
 
 def run(args):
-    """Run the benchmark from parsed options; returns the exit status."""
+    """Run the benchmark from parsed options; returns the exit status.
+
+    Raises
+    ------
+    MissingExtra, OutputPathError
+        ``--plot`` without the ``plot`` extra or into a folder that cannot
+        be written (before any planning).
+    """
     if args.repeats < 1:
         print('error: --repeats must be at least 1', file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.plot:
+        require('plot', 'bench paper --plot')
+        prepare_folder(args.plot, '--plot')
     map_path = args.map or paper_map.find_paper_map()
     if map_path is None:
         raise MapError('the bundled map config/maps/paper.yaml was not found; give --map')
@@ -324,7 +336,6 @@ def _plot_all(grid, results, folder):
     """One figure per case: ``folder/paper_<name>.png``."""
     labels = {case.name: case.label for case in CASES}
     try:
-        folder.mkdir(parents=True, exist_ok=True)
         for name, result in results.items():
             plot_plan(result, grid, folder / f'paper_{name}.png',
                       title=plan_title(result, labels[name]))

@@ -14,9 +14,13 @@ the peak memory.
 Notes
 -----
 - Peers are the optional ``bench`` extra (``pip install
-  fusion_planner[bench]``); a peer that is not installed is skipped with a
-  note. They never become runtime dependencies: each is imported inside its
-  adapter.
+  'fusion_planner[bench]'``); a peer asked for (``--planners``, default all)
+  that does not import stops the run before it starts, with one line naming
+  the extra. They never become runtime dependencies: each is imported
+  inside its adapter.
+- The MovingAI suite reads the maps of ``bench movingai``; when they are
+  absent and the suites were not chosen (``--suites``), the other suites
+  run and a note says why MovingAI was left out.
 - Corner rule and cost model (:data:`PLANNERS`): ours, tcod (configured
   with a diagonal condition), pathfinding (``only_when_no_obstacle``),
   python-motion-planning (``strict_collision``) and networkx (the graph
@@ -70,7 +74,9 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from fusion_planner.bench import movingai as movingai_bench
+from fusion_planner.cli.output_paths import prepare_file
 from fusion_planner.cli.progress import Progress
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.global_planning import metrics
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
@@ -132,7 +138,7 @@ QUICK_NAV2_SIDE_BUFFER = 10
 QUICK_MOVINGAI_ROWS = 2
 QUICK_BIG_SIDE = 200
 
-#: Median-time targets of issue 6.
+#: Speed, length, preparation and memory targets checked in the report.
 TARGET_IMPROVED_OVER_PYASTAR = 1.5
 TARGET_IMPROVED_LENGTH_RATIO = 1.03
 TARGET_PREP_S = 0.5
@@ -795,16 +801,9 @@ def make_adapter(name):
     return _Ours(name) if name in OURS else _ADAPTERS[name]()
 
 
-def peer_available(name):
-    """``(True, '')`` when a peer imports, else ``(False, reason)``."""
-    module = {'pyastar2d': 'pyastar2d', 'tcod': 'tcod', 'pathfinding': 'pathfinding',
-              'pmp': 'python_motion_planning', 'networkx': 'networkx'}[name]
-    try:
-        __import__(module)
-    except Exception as err:  # an import can fail in many ways; report it
-        return False, (f'not installed ({type(err).__name__}: {err}); '
-                       f'pip install {PLANNERS[name].package}')
-    return True, ''
+#: The module each peer is imported as.
+PEER_MODULES = {'pyastar2d': 'pyastar2d', 'tcod': 'tcod', 'pathfinding': 'pathfinding',
+                'pmp': 'python_motion_planning', 'networkx': 'networkx'}
 
 
 # ---------------------------------------------------------------------------
@@ -1023,7 +1022,7 @@ def format_report(header, scenarios, rows, extras, notes, verdicts):
                 f'{_fmt(row.peak_rss_over_map_mb, ".0f"):>8}'
                 + (f'  ({row.note})' if row.note else ''))
     if verdicts:
-        lines += ['', 'targets of issue 6 (medians of this run):']
+        lines += ['', 'targets (medians of this run):']
         lines += [f'  [{v["status"]}] {v["target"]}: {v["detail"]}' for v in verdicts]
     return '\n'.join(lines)
 
@@ -1138,15 +1137,16 @@ def _verdict(target, ok, detail):
 
 def add_arguments(parser):
     """Options of ``fusion-planner bench peers``."""
-    parser.add_argument('--suites', nargs='+', choices=SUITES, default=list(DEFAULT_SUITES),
+    parser.add_argument('--suites', nargs='+', choices=SUITES, default=None,
                         metavar='SUITE',
                         help=f'any of {", ".join(SUITES)} (default: '
-                             f'{" ".join(DEFAULT_SUITES)}; big is the {BIG_SIDE} x {BIG_SIDE} '
-                             'memory run of our planners)')
+                             f'{" ".join(DEFAULT_SUITES)}, movingai only when its maps are '
+                             f'there; big is the {BIG_SIDE} x {BIG_SIDE} memory run of our '
+                             'planners)')
     parser.add_argument('--planners', nargs='+', choices=list(PLANNERS), default=list(PLANNERS),
                         metavar='NAME',
-                        help=f'any of {", ".join(PLANNERS)} (default all; peers that are not '
-                             'installed are skipped with a note)')
+                        help=f'any of {", ".join(PLANNERS)} (default all; the peers need the '
+                             'bench extra)')
     parser.add_argument('--maps', metavar='DIR', default=None,
                         help='MovingAI folder (default as for bench movingai)')
     parser.add_argument('--only', nargs='+', metavar='NAME', default=None,
@@ -1188,24 +1188,27 @@ def run(args):
     Raises
     ------
     MapError, InvalidInput
-        Missing MovingAI data (when that suite is asked for), bad options.
+        Missing MovingAI data (when that suite is asked for with
+        ``--suites``), bad options.
+    MissingExtra, OutputPathError
+        A peer asked for that does not import, ``--plot`` without the
+        ``plot`` extra, an output path that cannot be written (all before
+        any work).
     """
     if args.rows < 1 or args.pairs < 1:
         raise InvalidInput('--rows and --pairs must be positive')
     if not args.budget > 0:
         raise InvalidInput(f'--budget must be a positive number of seconds, got {args.budget!r}')
-    suites = [s for s in SUITES if s in args.suites]
-    notes = []
-    planners = []
-    for name in PLANNERS:
-        if name not in args.planners:
-            continue
-        if name in PEERS:
-            ok, reason = peer_available(name)
-            if not ok:
-                notes.append(f'{PLANNERS[name].label} skipped: {reason}')
-                continue
-        planners.append(name)
+    planners = [name for name in PLANNERS if name in args.planners]
+    require('bench', 'bench peers',
+            modules=[PEER_MODULES[name] for name in planners if name in PEERS],
+            alternative='leave the peers out with --planners')
+    if args.plot:
+        require('plot', 'bench peers --plot')
+        prepare_file(args.plot, '--plot')
+    if args.json_out:
+        prepare_file(args.json_out, '--json-out')
+    suites, notes = chosen_suites(args)
     specs = scenario_specs(suites, args)
     progress = None if args.no_progress else Progress(len(specs), 'peers')
     scenarios, rows, extras = [], [], {}
@@ -1260,6 +1263,24 @@ def run(args):
     return EXIT_FAILED if failed else EXIT_OK
 
 
+def chosen_suites(args):
+    """The suites to run, in :data:`SUITES` order, and notes on those left out.
+
+    Without ``--suites`` (``args.suites`` None) the :data:`DEFAULT_SUITES`
+    run, MovingAI only when its maps are there; a MovingAI suite asked for
+    by name needs them (:func:`scenario_specs` raises).
+    """
+    if args.suites is not None:
+        return [s for s in SUITES if s in args.suites], []
+    suites = list(DEFAULT_SUITES)
+    folder = pathlib.Path(args.maps) if args.maps else movingai_bench.default_data_dir()
+    if args.maps is None and not folder.is_dir():
+        suites.remove('movingai')
+        return suites, [f'movingai suite left out: no MovingAI maps in {folder} (see '
+                        f'bench movingai --help; --maps DIR or ${movingai_bench.DATA_ENV})']
+    return suites, []
+
+
 def plot_times(rows, scenario_names, path):
     """Bar chart of the median CPU time per planner and map (log scale) to PNG.
 
@@ -1271,17 +1292,10 @@ def plot_times(rows, scenario_names, path):
     path : str or os.PathLike
         Output PNG.
 
-    Raises
-    ------
-    InvalidInput
-        If matplotlib is not installed.
     """
-    try:
-        import matplotlib
-        matplotlib.use('Agg')
-        import matplotlib.pyplot as plt
-    except ImportError:
-        raise InvalidInput('--plot needs matplotlib (pip install matplotlib)') from None
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
     names = [n for n in PLANNERS if any(r.planner == n and r.pairs for r in rows)]
     by = {(r.scenario, r.planner): r for r in rows}
     fig, ax = plt.subplots(figsize=(max(8.0, 1.1 * len(scenario_names) + 4), 4.8))

@@ -24,7 +24,7 @@ import statistics
 import time
 
 from fusion_planner.bench import paper_map, peers
-from fusion_planner.bench.movingai import _strict, default_data_dir
+from fusion_planner.bench.movingai import _strict, default_data_dir, missing_data
 from fusion_planner.core.global_planning import metrics, refine
 from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
 from fusion_planner.core.grid import GridMap
@@ -137,11 +137,16 @@ def run(args):
     Raises
     ------
     InvalidInput, MapError
-        Bad options, missing MovingAI data.
+        Bad options, missing MovingAI data (checked before any work).
     """
     if args.repeats < 1:
         raise InvalidInput(f'--repeats must be positive, got {args.repeats}')
     maps_dir = pathlib.Path(args.maps) if args.maps else default_data_dir()
+    if not args.quick:
+        for name in MOVINGAI_MAPS:
+            for path in (maps_dir / f'{name}.map', maps_dir / f'{name}.map.scen'):
+                if not path.is_file():
+                    raise missing_data(path, alternative='give --quick (no MovingAI paths)')
     rows = [(name, measure(grid, start, goal, radius, safety, args.repeats))
             for name, grid, start, goal, radius, safety in cases(maps_dir, args.quick)]
     if args.json:

@@ -3,7 +3,8 @@
 Usage::
 
     fusion-planner demo [--scenario FILE] [--time-limit S] [--real-time-factor F]
-        [--plot PNG] [--gif GIF | --no-gif] [--record MCAP | --no-record] [--processes]
+        [--plot PNG] [--no-plot] [--gif GIF | --no-gif] [--record MCAP | --no-record]
+        [--processes]
 
 Runs ``simulator``, ``global_planner`` and ``local_planner`` headless on a
 scenario (default: the bundled ``config/scenarios/demo.yaml``, with moving
@@ -19,26 +20,34 @@ the simulated time limit passes:
 
 The simulator publishes the simulated time on ``/clock`` and the planners run
 on it (``use_sim_time``), ``--real-time-factor`` times faster than the wall
-clock. While it runs, one updating line on stderr shows the simulated time,
-the distance to the goal, the collisions so far and an estimate of the wall
-time left (from the share of the straight-line distance covered). At the end
-one outcome line goes to stdout (arrived, simulated time, driven path
-length, collisions, minimum clearance) and the run is written out, each
-beside the picture unless told otherwise:
+clock. While it runs, a progress line on stderr (redrawn in place on a
+terminal, see :class:`~fusion_planner.cli.progress.StatusLine`) shows the
+simulated time, the distance to the goal, the collisions so far and an
+estimate of the wall time left (from the share of the straight-line
+distance covered). At the end one outcome line goes to stdout (arrived,
+simulated time, driven path length, collisions, minimum clearance); the
+last progress line shows the same time. What happens after the simulated
+time limit is not part of the run: the reported time never exceeds it.
+The run is written out, each file beside the picture unless told otherwise:
 
-- a picture (default ``output/demo.png``) and an animated GIF
-  (``output/demo.gif``), drawn like ``fusion-planner sim --plot/--gif``;
+- a picture (default ``output/demo.png``, ``--no-plot`` for none) and an
+  animated GIF (``output/demo.gif``), drawn like ``fusion-planner sim
+  --plot/--gif``;
 - an MCAP recording (``output/demo.mcap``) of ``map``, ``plan``,
   ``plan_markers``, ``local_plan``, ``odom``, ``scan``, ``obstacles``,
   ``cmd_vel``, ``goal_pose`` and ``diagnostics`` in ROS 2 message encoding
   (CDR, ``ros2msg`` schemas), stamped with the simulated time, for Foxglove
   or ``ros2 bag play`` (see :mod:`fusion_planner.cli.recording`).
 
-A missing optional library (matplotlib for the pictures, mcap for the
-recording) or an unwritable file skips that output with one line on stderr.
+Before anything runs, the extras the chosen outputs need (``plot``,
+``record``) and ROS 2 are checked and the output paths prepared
+(:mod:`fusion_planner.cli.requirements`,
+:mod:`fusion_planner.cli.output_paths`): a missing one is one line and exit
+status 2.
 
 Exit status: 0 the robot arrived without a collision, 1 it did not arrive or
-collided, 2 bad input (unreadable scenario, ROS 2 not importable). Every
+collided, 2 bad input (unreadable scenario, ROS 2 or an extra not
+importable, an output path that cannot be written). Every
 ROS topic used is relative, so ``ROS_DOMAIN_ID`` keeps runs apart.
 """
 
@@ -54,8 +63,10 @@ from dataclasses import fields
 
 import numpy as np
 
-from fusion_planner.cli.progress import eta_s, format_duration
+from fusion_planner.cli.output_paths import prepare_file, prepare_folder
+from fusion_planner.cli.progress import StatusLine, eta_s, format_duration
 from fusion_planner.cli.recording import DefinitionNotFound, TopicRecorder
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.scenario import load_scenario
 from fusion_planner.core.simulation.episodes import follower_params
@@ -64,6 +75,8 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 #: Default picture of the run.
 DEFAULT_PLOT = pathlib.Path('output') / 'demo.png'
+#: Folder of the node logs with ``--processes``, beside the picture.
+LOG_FOLDER = 'demo_logs'
 #: Default speed-up of simulated time over wall time [1].
 DEFAULT_REAL_TIME_FACTOR = 10.0
 #: Wall period of the progress line [s].
@@ -84,6 +97,8 @@ PROCESS_STOP_TIMEOUT_S = 10.0
 SPIN_STOP_TIMEOUT_S = 5.0
 #: Timeout of one ``spin_once`` of the background spinner [s].
 SPIN_POLL_S = 0.05
+#: Slack of the time-limit comparisons [s] (float stamps).
+TIME_EPS_S = 1e-6
 #: Node names of the package, in start order.
 NODES = ('simulator', 'global_planner', 'local_planner')
 #: Queue depth of the recorder's subscriptions [messages] (deep: a busy
@@ -109,6 +124,9 @@ def add_parser(subparsers):
                         help='simulated seconds per wall second (default: %(default)s)')
     parser.add_argument('--plot', default=str(DEFAULT_PLOT), metavar='PNG',
                         help='picture of the run (default: %(default)s)')
+    parser.add_argument('--no-plot', action='store_true',
+                        help='do not draw the picture (the other files still go beside '
+                             'its path)')
     gif = parser.add_mutually_exclusive_group()
     gif.add_argument('--gif', metavar='GIF',
                      help='animation of the run (default: beside the picture, as .gif)')
@@ -235,6 +253,10 @@ class RunRecorder:
         Gives the goal and the number of moving obstacles.
     goal_tolerance : float
         The local planner's arrival radius [m].
+    time_limit_s : float, optional
+        Simulated time limit [s]: the run ends there, so later messages
+        (odometry, obstacles, statuses, an arrival) are not recorded and the
+        simulated time stops at it. Default: none.
 
     Notes
     -----
@@ -242,8 +264,10 @@ class RunRecorder:
     a lock guards the state.
     """
 
-    def __init__(self, scenario, goal_tolerance):
+    def __init__(self, scenario, goal_tolerance, time_limit_s=math.inf):
         self.scenario = scenario
+        self.time_limit_s = float(time_limit_s)
+        self.ended = False  # the clock passed the limit, or end() was called
         self.goal = np.asarray(scenario.goal, dtype=float)
         # The plan ends at the centre of the goal's cell, up to half a cell
         # diagonal from the goal; one diagonal of slack covers that.
@@ -268,9 +292,21 @@ class RunRecorder:
         self.arrived_at = None  # simulated time of arrival [s]
         self.failure = None
 
+    def end(self):
+        """End the run now: what comes later is not recorded (the limit becomes now)."""
+        with self._lock:
+            self.time_limit_s = min(self.time_limit_s, self.sim_time)
+            self.ended = True
+
+    def past_limit(self, t):
+        """Whether simulated time ``t`` [s] lies after the time limit."""
+        return t > self.time_limit_s + TIME_EPS_S
+
     def on_clock(self, msg):
         t = _seconds(msg.clock)
         with self._lock:
+            self.ended = self.ended or self.past_limit(t)
+            t = min(t, self.time_limit_s)
             if t != self.sim_time:
                 self.clock_wall = time.monotonic()
                 if self.started_wall is None:
@@ -278,6 +314,8 @@ class RunRecorder:
             self.sim_time = t
 
     def on_odom(self, msg):
+        if self.past_limit(_seconds(msg.header.stamp)):
+            return
         p = msg.pose.pose
         yaw = 2.0 * math.atan2(p.orientation.z, p.orientation.w)
         with self._lock:
@@ -285,6 +323,8 @@ class RunRecorder:
             self.pose_times.append(_seconds(msg.header.stamp))
 
     def on_obstacles(self, msg):
+        if msg.markers and self.past_limit(_seconds(msg.markers[0].header.stamp)):
+            return
         k = len(self.scenario.moving_obstacles)
         positions = np.full((k, 2), np.nan)
         for marker in msg.markers:
@@ -305,6 +345,9 @@ class RunRecorder:
 
     def on_diagnostics(self, msg):
         stamp = _seconds(msg.header.stamp)  # sender's clock
+        with self._lock:
+            if self.ended:
+                return  # nothing after the limit counts
         for status in msg.status:
             values = {kv.key: kv.value for kv in status.values}
             with self._lock:
@@ -316,6 +359,7 @@ class RunRecorder:
                         self.escape_points.append(self.poses[-1][:2])
                     self.stuck_events = max(self.stuck_events, stuck)
                     if values.get('status') == 'arrived' and self.arrived_at is None \
+                            and not self.past_limit(stamp) \
                             and self.distance_to_goal() <= self.arrival_radius:
                         self.arrived_at = stamp  # the local planner runs on simulated time
                         self.arrived_wall = time.monotonic()
@@ -349,9 +393,10 @@ class RunRecorder:
             return int(self.sim_status.get('collisions', 0))
 
     def snapshot(self):
-        """``(sim time [s], distance to goal [m], collisions)`` now."""
+        """``(sim time [s], distance to goal [m], collisions)`` now; the time stops at arrival."""
         with self._lock:
-            return self.sim_time, self.distance_to_goal(), int(self.sim_status.get('collisions', 0))
+            sim_time = self.arrived_at if self.arrived_at is not None else self.sim_time
+            return sim_time, self.distance_to_goal(), int(self.sim_status.get('collisions', 0))
 
     def result(self, reached, failure):
         """An :class:`~fusion_planner.core.simulation.episodes.EpisodeResult` of the run (for the figure)."""
@@ -372,7 +417,9 @@ class RunRecorder:
             scenario=self.scenario.name, controller=str(local.get('controller', 'fusion')),
             seed=self.scenario.seed, reached=reached,
             collisions=int(sim.get('collisions', 0)), time_s=time_s,
-            path_length_m=float(sim.get('distance_travelled_m', odom_length)),
+            # the simulator's count lags by up to a status period; odometry may miss
+            # messages: the larger is the more recent
+            path_length_m=max(float(sim.get('distance_travelled_m', 0.0)), odom_length),
             min_clearance_m=float(sim.get('min_clearance_m', 'nan')),
             stuck_events=int(local.get('stuck_events', 0)), failure=failure,
             plan_length_m=None if plan is None else
@@ -627,13 +674,13 @@ def wait_final_status(recorder, after_wall):
 
 def run(args):
     """Run the demo; returns the exit status (see the module docstring)."""
-    try:
-        import rclpy  # noqa: F401 - only to fail early with a clear message
-    except ImportError as err:
-        print(f'error: ROS 2 (rclpy) is not importable ({err}); install the ros extra '
-              "(pip install 'fusion_planner[ros]') or source a ROS 2 Jazzy install",
-              file=sys.stderr)
-        return EXIT_BAD_INPUT
+    require('ros', 'demo')
+    plot_path, gif_path, mcap_path = prepare_outputs(args)
+    log_dir = pathlib.Path(args.plot).parent / LOG_FOLDER
+    if args.processes:
+        prepare_folder(log_dir, '--processes logs')
+    import rclpy
+
     from fusion_planner.ros.simulator import default_scenario_path, share_file
 
     if not (args.real_time_factor > 0 and math.isfinite(args.real_time_factor)):
@@ -645,9 +692,8 @@ def run(args):
     if not (time_limit > 0 and math.isfinite(time_limit)):
         raise InvalidInput(f'--time-limit must be a positive number of seconds, got {time_limit!r}')
     params = node_parameters(scenario, scenario_path, args.real_time_factor)
-    recorder = RunRecorder(scenario, params['local_planner']['goal_tolerance'])
+    recorder = RunRecorder(scenario, params['local_planner']['goal_tolerance'], time_limit)
     wall_limit = time_limit / args.real_time_factor * 3.0 + WALL_SLACK_S
-    plot_path, gif_path, mcap_path = output_paths(args)
     mode = 'three processes' if args.processes else 'one process'
     print(f"demo: scenario '{scenario.name}' ({scenario_path}), {mode}, "
           f'real-time factor {args.real_time_factor:g}, time limit {time_limit:g} s',
@@ -655,13 +701,14 @@ def run(args):
     start_distance = math.hypot(scenario.start[0] - scenario.goal[0],
                                 scenario.start[1] - scenario.goal[1])
 
-    def progress(sim_time, distance, collisions):
+    status_line = StatusLine()
+
+    def progress(sim_time, distance, collisions, force=False):
         started = recorder.started_wall
         elapsed = 0.0 if started is None else time.monotonic() - started
         eta = eta_s(elapsed, min(max(1.0 - distance / max(start_distance, 1e-9), 0.0), 1.0))
-        print(f'\r  sim {sim_time:7.2f} s   distance to goal {distance:6.2f} m   '
-              f'collisions {collisions}   ETA {format_duration(eta)}   ',
-              end='', file=sys.stderr, flush=True)
+        status_line.show(f'  sim {sim_time:7.2f} s   distance to goal {distance:6.2f} m   '
+                         f'collisions {collisions}   ETA {format_duration(eta)}', force)
 
     context = rclpy.Context()
     # Ctrl-C stays a KeyboardInterrupt here: the finally below stops everything.
@@ -682,8 +729,7 @@ def run(args):
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(nodes[0])
         if args.processes:
-            procs = start_processes(params, share_file('config/params.yaml'),
-                                    plot_path.parent / 'demo_logs')
+            procs = start_processes(params, share_file('config/params.yaml'), log_dir)
 
             def alive():
                 for name, proc, log_path in procs:
@@ -702,10 +748,13 @@ def run(args):
         spinner = Spinner(executor)
         failure = watch(recorder, time_limit, wall_limit, alive, progress)
         end_wall = time.monotonic()
-        wait_final_status(recorder, end_wall)
+        if failure is None:
+            wait_final_status(recorder, end_wall)  # collisions and distance at the end
+        recorder.end()
+        progress(*recorder.snapshot(), force=True)  # the time of the outcome line
         wall_time = end_wall - wall_start
     finally:
-        print(file=sys.stderr)
+        status_line.close()
         codes = stop_processes(procs) if procs else {}
         shutdown_executor(spinner, nodes, context)
         if topic_recorder is not None:
@@ -723,8 +772,7 @@ def run(args):
         print(f'not arrived: {failure}', file=sys.stderr)
     bad_exits = {name: code for name, code in codes.items() if code != 0}
     if bad_exits:
-        print(f'node processes exited with {bad_exits} (logs in {plot_path.parent / "demo_logs"})',
-              file=sys.stderr)
+        print(f'node processes exited with {bad_exits} (logs in {log_dir})', file=sys.stderr)
     _draw(scenario, result, plot_path, gif_path)
     if topic_recorder is not None:
         print(f'recording: {mcap_path} ({sum(counts.values())} messages on '
@@ -737,22 +785,43 @@ def output_paths(args):
 
     Returns
     -------
-    plot : pathlib.Path
-    gif, mcap : pathlib.Path or None
-        ``--gif`` / ``--record`` when given, else the picture's path with
-        the suffix ``.gif`` / ``.mcap``; None with ``--no-gif`` /
-        ``--no-record``.
+    plot, gif, mcap : pathlib.Path or None
+        ``--plot`` (None with ``--no-plot``); ``--gif`` / ``--record`` when
+        given, else the ``--plot`` path with the suffix ``.gif`` / ``.mcap``;
+        None with ``--no-gif`` / ``--no-record``.
 
     Examples
     --------
     >>> import argparse
-    >>> output_paths(argparse.Namespace(plot='out/run.png', gif=None, no_gif=False,
-    ...                                 record=None, no_record=True))
+    >>> output_paths(argparse.Namespace(plot='out/run.png', no_plot=False, gif=None,
+    ...                                 no_gif=False, record=None, no_record=True))
     (PosixPath('out/run.png'), PosixPath('out/run.gif'), None)
     """
     plot = pathlib.Path(args.plot)
     gif = None if args.no_gif else pathlib.Path(args.gif or plot.with_suffix('.gif'))
     mcap = None if args.no_record else pathlib.Path(args.record or plot.with_suffix('.mcap'))
+    return None if args.no_plot else plot, gif, mcap
+
+
+def prepare_outputs(args):
+    """:func:`output_paths`, after checking their extras and preparing their folders.
+
+    Raises
+    ------
+    MissingExtra
+        The ``plot`` extra for the picture or the animation, the ``record``
+        extra for the recording.
+    OutputPathError
+        A path that cannot be written.
+    """
+    plot, gif, mcap = output_paths(args)
+    if plot is not None or gif is not None:
+        require('plot', 'demo (its picture and animation)', alternative='give --no-plot --no-gif')
+    if mcap is not None:
+        require('record', 'demo (its recording)', alternative='give --no-record')
+    for option, path in (('--plot', plot), ('--gif', gif), ('--record', mcap)):
+        if path is not None:
+            prepare_file(path, option)
     return plot, gif, mcap
 
 
@@ -785,29 +854,24 @@ def recorded_topics():
 def start_recording(node, path):
     """A :class:`~fusion_planner.cli.recording.TopicRecorder` of :func:`recorded_topics`.
 
-    Returns None, after one line on stderr saying why, when the ``mcap``
-    library is missing or the file or a message definition is unavailable:
-    the demo runs without a recording then.
+    Returns None, after one line on stderr saying why, when the file or a
+    message definition is unavailable: the demo runs without a recording
+    then. (The ``record`` extra and the folder are checked before the run.)
     """
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
         return TopicRecorder(node, path, recorded_topics())
-    except ImportError as err:
-        print(f"no recording: the mcap library is not importable ({err}); install the record "
-              "extra (pip install 'fusion_planner[record]')", file=sys.stderr)
     except (OSError, DefinitionNotFound) as err:
         print(f'no recording: {err}', file=sys.stderr)
     return None
 
 
 def _draw(scenario, result, plot_path, gif_path):
-    """Write the picture and the animation; a failure to draw is reported, not fatal."""
-    try:
-        from fusion_planner.cli.animation import animate_episode
-        from fusion_planner.cli.sim_plot import episode_title, plot_episode
-    except ImportError as err:
-        print(f'no picture: matplotlib is not importable ({err})', file=sys.stderr)
+    """Write the picture and the animation (those not None); a failure to draw is reported."""
+    if plot_path is None and gif_path is None:
         return
+    from fusion_planner.cli.animation import animate_episode
+    from fusion_planner.cli.sim_plot import episode_title, plot_episode
+
     outputs = (
         ('picture', plot_path, lambda: plot_episode(
             scenario, result, plot_path, title='ROS 2 nodes, ' + episode_title(scenario, result))),
@@ -817,7 +881,6 @@ def _draw(scenario, result, plot_path, gif_path):
         if path is None:
             continue
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
             draw()
         except (OSError, ValueError) as err:
             print(f'could not write {path}: {err}', file=sys.stderr)

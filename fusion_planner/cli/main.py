@@ -25,9 +25,25 @@ COMMANDS = (
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
 
+class CommandParser(argparse.ArgumentParser):
+    """An argument parser whose sub-commands refuse unknown options themselves.
+
+    argparse hands the options a sub-command does not know back to the
+    top-level parser, which then prints its own usage; here the innermost
+    sub-command that got them reports them with its usage (exit 2).
+    Sub-parsers inherit the class.
+    """
+
+    def parse_known_args(self, args=None, namespace=None):
+        namespace, unknown = super().parse_known_args(args, namespace)
+        if unknown:
+            self.error(f'unrecognized arguments: {" ".join(unknown)}')
+        return namespace, unknown
+
+
 def build_parser():
     """The argument parser with every sub-command registered."""
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog='fusion-planner',
         description='Improved A* + improved APF path planning (paper reproduction, '
                     'simulation, benchmarks).')

@@ -24,9 +24,11 @@ This is a contract other tools rely on:
   no path) and ``error`` (null, or one sentence).
 - Exit status: 0 a path was found, 1 no path exists (or the search budget
   ran out), 2 bad input (unreadable map, start or goal outside the map or in
-  an obstacle, NaN, bad options, a ``--plot`` file that cannot be written;
-  in that last case the plan is still printed). Errors are one line on
-  stderr, never a traceback.
+  an obstacle, NaN, bad options, a ``--plot`` file that cannot be written,
+  the ``plot`` extra missing). ``--plot`` is checked before planning (see
+  :mod:`fusion_planner.cli.output_paths` and
+  :mod:`fusion_planner.cli.requirements`). Errors are one line on stderr,
+  never a traceback.
 - Defaults: the improved A*, the 8-neighbourhood, refinement on, and a
   robot radius and safety distance of 0 m for every map file (map files
   carry no robot; give ``--robot-radius`` / ``--safety-distance`` for a real
@@ -38,7 +40,9 @@ import json
 import math
 import sys
 
+from fusion_planner.cli.output_paths import prepare_file
 from fusion_planner.cli.plotting import plan_title, plot_plan
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import (
     GoalOutsideMapBounds, InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut,
     PlanningError, StartOutsideMapBounds)
@@ -88,7 +92,17 @@ def add_parser(subparsers):
 
 
 def run(args):
-    """Run ``plan``; returns the exit status (0 found, 1 no path, 2 bad input)."""
+    """Run ``plan``; returns the exit status (0 found, 1 no path, 2 bad input).
+
+    Raises
+    ------
+    MissingExtra, OutputPathError
+        ``--plot`` without the ``plot`` extra or into a path that cannot be
+        written (before any planning).
+    """
+    if args.plot:
+        require('plot', 'plan --plot')
+        prepare_file(args.plot, '--plot')
     grid = start = goal = result = None
     error = None
     try:

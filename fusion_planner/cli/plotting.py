@@ -182,10 +182,10 @@ def plot_plan(result, grid, path_png, title=None, start=None, goal=None):
 
     Notes
     -----
-    Drawn: obstacles (black), expanded cells (light grey), the raw grid
-    path of the search (dashed orange, when refinement changed it), the
-    final path (blue), its key nodes (small circles), the start (green dot)
-    and the goal (red star).
+    Drawn: obstacles (black), expanded cells (light grey, "searched cells"
+    in the legend), the raw grid path of the search (dashed orange, when
+    refinement changed it), the final path (blue), its key nodes (small
+    circles), the start (green dot) and the goal (red star).
     """
     fig = new_figure(grid)
     ax = fig.axes[0]
@@ -193,8 +193,12 @@ def plot_plan(result, grid, path_png, title=None, start=None, goal=None):
     draw_grid(ax, grid, expanded_cells=expanded)
     draw_plan(ax, result, grid, start=start, goal=goal)
     ax.set_title(title if title is not None else plan_title(result), fontsize=9)
-    ax.legend(loc='upper center', bbox_to_anchor=(0.5, -0.13), ncol=5, fontsize=7,
-              frameon=False, handlelength=1.5)
+    handles, _ = ax.get_legend_handles_labels()
+    if expanded is not None and len(expanded):
+        from matplotlib.patches import Patch
+        handles.insert(0, Patch(facecolor=EXPANDED_RGB, edgecolor='none', label='searched cells'))
+    ax.legend(handles=handles, loc='upper center', bbox_to_anchor=(0.5, -0.13), ncol=5,
+              fontsize=7, frameon=False, handlelength=1.5)
     fig.tight_layout()
     fig.savefig(path_png, dpi=FIGURE_DPI)
     return fig

@@ -2,10 +2,12 @@
 
 One :class:`Progress` per job: the caller says how much work there is and
 calls :meth:`Progress.advance` as it gets done; a line with the count, the
-elapsed time and the estimated time left goes to stderr, rewritten in place
-on a terminal and throttled to one line per :data:`LOG_PERIOD_S` in a log
-file. :func:`eta_s` is the estimate on its own, for a caller that knows the
-done fraction but not a count (the demo's distance to the goal).
+elapsed time and the estimated time left goes to stderr. Every progress
+output goes through a :class:`StatusLine`: redrawn in place (``\\r``) only
+when the stream is a terminal, else one whole line per update, throttled to
+one per :data:`LOG_PERIOD_S`, so that a log file stays readable.
+:func:`eta_s` is the estimate on its own, for a caller that knows the done
+fraction but not a count (the demo's distance to the goal).
 """
 
 import math
@@ -76,6 +78,58 @@ def eta_s(elapsed_s, fraction):
     return elapsed_s * (1.0 - fraction) / fraction
 
 
+class StatusLine:
+    """One status line on a stream, throttled: redrawn in place on a terminal, appended in a log.
+
+    Parameters
+    ----------
+    stream : file, optional
+        Where to write; default ``sys.stderr`` as it is at construction.
+
+    Examples
+    --------
+    >>> import io
+    >>> log = io.StringIO()
+    >>> line = StatusLine(log)
+    >>> line.show('first'), line.show('throttled'), line.show('last', force=True)
+    (True, False, True)
+    >>> line.close()
+    >>> log.getvalue()
+    'first\\nlast\\n'
+    """
+
+    def __init__(self, stream=None):
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = bool(getattr(self.stream, 'isatty', lambda: False)())
+        self.period_s = TTY_PERIOD_S if self.tty else LOG_PERIOD_S
+        self.last = -math.inf
+        self.drawn = False
+
+    def show(self, text, force=False, now=None):
+        """Write ``text`` if the last line is old enough (or ``force``); returns whether it did.
+
+        ``now`` is the caller's ``time.monotonic()`` reading [s], if it has one.
+        """
+        now = time.monotonic() if now is None else now
+        if not (force or now - self.last >= self.period_s):
+            return False
+        self.last = now
+        if self.tty:
+            self.stream.write('\r' + text.ljust(TTY_WIDTH))
+        else:
+            self.stream.write(text + '\n')
+        self.stream.flush()
+        self.drawn = True
+        return True
+
+    def close(self):
+        """End the line on a terminal (a log's lines are already ended)."""
+        if self.tty and self.drawn:
+            self.stream.write('\n')
+            self.stream.flush()
+        self.drawn = False
+
+
 class Progress:
     """Work done / total, elapsed time and time left on a stream, throttled.
 
@@ -89,7 +143,7 @@ class Progress:
         Name of the unit, e.g. ``'rows'``; when given, the line shows
         ``done/total unit``, else only the percentage (fractional work).
     stream : file, optional
-        Where to write; default ``sys.stderr`` as it is at construction.
+        As for :class:`StatusLine`, which writes the lines.
 
     Examples
     --------
@@ -115,11 +169,8 @@ class Progress:
         self.unit = unit
         self.done = 0
         self.status = ''
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = bool(getattr(self.stream, 'isatty', lambda: False)())
-        self.period_s = TTY_PERIOD_S if self.tty else LOG_PERIOD_S
         self.t0 = time.monotonic()
-        self.last = -math.inf
+        self.output = StatusLine(stream)
 
     def advance(self, amount=1, status=None, force=False):
         """Count ``amount`` more work done and print a line if one is due.
@@ -138,10 +189,7 @@ class Progress:
         if status is not None:
             self.status = status
         now = time.monotonic()
-        if not (force or now - self.last >= self.period_s):
-            return
-        self.last = now
-        self._write(self.line(now - self.t0))
+        self.output.show(self.line(now - self.t0), force, now)
 
     def line(self, elapsed_s):
         """The progress text after ``elapsed_s`` seconds of wall time."""
@@ -155,13 +203,4 @@ class Progress:
     def finish(self):
         """Print the final line (and end the terminal line)."""
         self.advance(0, force=True)
-        if self.tty:
-            self.stream.write('\n')
-            self.stream.flush()
-
-    def _write(self, text):
-        if self.tty:
-            self.stream.write('\r' + text.ljust(TTY_WIDTH))
-        else:
-            self.stream.write(text + '\n')
-        self.stream.flush()
+        self.output.close()

@@ -32,12 +32,14 @@ Contract:
   :class:`~fusion_planner.core.simulation.episodes.ControllerSummary`) and
   ``episodes`` (one row per run).
 - ``--plot PNG`` (scenario only) draws the run like the paper's Figures 5-6;
-  ``--gif GIF`` (scenario only) writes it as an animation.
+  ``--gif GIF`` (scenario only) writes it as an animation. Both need the
+  ``plot`` extra; it and the paths are checked before the run
+  (:mod:`fusion_planner.cli.requirements`, :mod:`fusion_planner.cli.output_paths`).
 - A batch reports its progress with an estimated time to completion on
   stderr.
 - Exit status: 0 the goal was reached (a batch: the batch completed), 1 the
   goal was not reached, 2 bad input (unreadable or invalid scenario, unknown
-  controller, bad option). Errors are one line on stderr, never a traceback.
+  controller, bad option, missing extra, unwritable output). Errors are one line on stderr, never a traceback.
 """
 
 import contextlib
@@ -45,7 +47,9 @@ import json
 import logging
 import sys
 
+from fusion_planner.cli.output_paths import prepare_file
 from fusion_planner.cli.progress import Progress
+from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import PlanningError
 from fusion_planner.core.simulation.episodes import CONTROLLERS
 from fusion_planner.core.simulation.families import FAMILIES
@@ -118,6 +122,7 @@ def _run(args):
             raise _BadInput('--family chooses generated scenarios; it needs --random N')
         if len(controllers) != 1:
             raise _BadInput('a scenario runs one controller; give --controller once')
+        _check_outputs(args)
         return _run_scenario(args, controllers[0])
     except (_BadInput, PlanningError) as err:
         print(f'error: {_one_line(err)}', file=sys.stderr)
@@ -134,6 +139,14 @@ def _controllers(args):
         if name not in CONTROLLERS:
             raise _BadInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLERS)}')
     return list(dict.fromkeys(names))
+
+
+def _check_outputs(args):
+    """``--plot`` and ``--gif``: the ``plot`` extra and writable paths, before the run."""
+    for option, path in (('--plot', args.plot), ('--gif', args.gif)):
+        if path:
+            require('plot', f'sim {option}')
+            prepare_file(path, option)
 
 
 def _run_scenario(args, controller):

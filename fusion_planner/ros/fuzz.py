@@ -30,6 +30,10 @@ commands. The test suite runs 1,000 messages per input
 Needs hypothesis (the ``test`` extra).
 """
 
+if __name__ == '__main__':  # the soak: name a missing extra before the imports below fail
+    from fusion_planner.cli.requirements import exit_if_missing
+    exit_if_missing(('ros', 'test'), 'python -m fusion_planner.ros.fuzz', 'the soak test')
+
 import argparse
 import array
 import functools

@@ -1,6 +1,7 @@
 """Artificial potential fields: the classic field and the paper's improved one.
 
-Implements section 2 of the paper (PAPER.md): the attractive field of
+Implements section 2 of the paper ("Robot Path Planning Based on Improved A*
+Algorithm and Artificial Potential Field Method"): the attractive field of
 eqs. (9)-(10), the classic repulsive field of eqs. (11)-(12) and their sum
 (eqs. (13)-(14)), the goal-distance-scaled repulsion of eqs. (15)-(16), the
 robot-velocity repulsion of eq. (17) and the adaptive step of eq. (18).

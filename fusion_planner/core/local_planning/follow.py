@@ -1,6 +1,6 @@
 """Local controllers: turn a global plan and what the robot senses into (v, omega).
 
-Four controllers share one interface (:class:`Controller`), made by
+Five controllers share one interface (:class:`Controller`), made by
 :func:`make_controller`:
 
 ``'fusion'``
@@ -29,6 +29,10 @@ Four controllers share one interface (:class:`Controller`), made by
 ``'astar-track'``
     Pure-pursuit tracking of the global path with no avoidance at all, the
     baseline the paper improves on. Stuck (blocked) means failed.
+``'dwa'``
+    The dynamic window approach (Fox et al. 1997) on a carrot of the global
+    path, a standard local planner from the field; no recovery: no progress
+    means failed.
 
 This module is the entry point; the controllers live in modules with one job
 each, and their public names are re-exported here:
@@ -46,6 +50,7 @@ module                                     what
 :mod:`~fusion_planner.core.local_planning.speed_policy`     speed for the braking path and the turn ahead
 :mod:`~fusion_planner.core.local_planning.progress`         time without progress toward the goal
 :mod:`~fusion_planner.core.local_planning.yielding`         the side kept for people on the route
+:mod:`~fusion_planner.core.local_planning.dwa`              the ``'dwa'`` baseline
 :mod:`~fusion_planner.core.local_planning.local_geometry`   small geometry helpers
 =========================================  ====================================================
 
@@ -91,15 +96,16 @@ from fusion_planner.core.local_planning.controller_base import (
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.field_follower import FieldFollower
 from fusion_planner.core.local_planning.local_geometry import thin_points, wrap_angle
+from fusion_planner.core.local_planning.dwa import DynamicWindow
 from fusion_planner.core.local_planning.path_tracker import PathTracker
 from fusion_planner.core.local_planning.replanning import GridReplanner
 
-__all__ = ['CONTROLLER_NAMES', 'STATUSES', 'Command', 'Controller', 'FieldFollower',
-           'FollowerParams', 'GridReplanner', 'Observation', 'PathTracker', 'make_controller',
+__all__ = ['CONTROLLER_NAMES', 'STATUSES', 'Command', 'Controller', 'DynamicWindow',
+           'FieldFollower', 'FollowerParams', 'GridReplanner', 'Observation', 'PathTracker', 'make_controller',
            'thin_points', 'wrap_angle']
 
 #: Names accepted by :func:`make_controller`.
-CONTROLLER_NAMES = ('fusion', 'apf', 'classic-apf', 'astar-track')
+CONTROLLER_NAMES = ('fusion', 'apf', 'classic-apf', 'dwa', 'astar-track')
 
 
 def make_controller(name, params, replan=None):
@@ -134,4 +140,6 @@ def make_controller(name, params, replan=None):
                              predict=False)
     if name == 'astar-track':
         return PathTracker(params)
+    if name == 'dwa':
+        return DynamicWindow(params)
     raise InvalidInput(f'unknown controller {name!r}; choose one of {", ".join(CONTROLLER_NAMES)}')

@@ -64,6 +64,25 @@ class PathTracker(ControllerBase):
             path = np.vstack([path, self._key_nodes[-1]])
         self._dense = resample(path, TRACK_SPACING)
 
+    def _stop_or_arrive(self, obs):
+        """The stop command (no plan, failure, or inside the goal tolerance), else None.
+
+        Returns
+        -------
+        command : Command or None
+        goal_distance : float
+            From the robot to the goal [m] (NaN with a stop for no plan or a
+            failure).
+        """
+        stop = self._checked_stop(obs)
+        if stop is not None:
+            return stop, math.nan
+        goal = self._key_nodes[-1]
+        goal_distance = math.hypot(*(goal - obs.pose[:2]))
+        if goal_distance <= self.params.goal_tolerance:
+            return self._stop(obs, 'arrived', sub_goal=goal.copy()), goal_distance
+        return None, goal_distance
+
     def compute(self, obs):
         """One control step.
 
@@ -85,15 +104,12 @@ class PathTracker(ControllerBase):
         InvalidInput
             If ``obs`` is not an Observation.
         """
-        stop = self._checked_stop(obs)
+        stop, goal_distance = self._stop_or_arrive(obs)
         if stop is not None:
             return stop
         p = self.params
         q = obs.pose[:2]
         goal = self._key_nodes[-1]
-        goal_distance = math.hypot(*(goal - q))
-        if goal_distance <= p.goal_tolerance:
-            return self._stop(obs, 'arrived', sub_goal=goal.copy())
         window = self._dense[self._closest:self._closest + TRACK_SEARCH_WINDOW]
         self._closest += int(np.argmin(np.hypot(window[:, 0] - q[0], window[:, 1] - q[1])))
         ahead = self._dense[self._closest:]

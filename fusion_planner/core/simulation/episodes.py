@@ -43,7 +43,7 @@ LOGGER = logging.getLogger(__name__)
 #: Controllers, in the order reports list them.
 CONTROLLERS = follow.CONTROLLER_NAMES
 #: Controllers that follow the global plan (the others get ``[start, goal]``).
-PLAN_FOLLOWERS = ('fusion', 'astar-track')
+PLAN_FOLLOWERS = ('fusion', 'dwa', 'astar-track')
 #: Slack on the arrival distance check [m] (floating point only).
 ARRIVAL_SLACK_M = 1e-9
 #: How a run ends: at the goal; the controller's proof (or the planner's)
@@ -146,7 +146,7 @@ class EpisodeResult:
         return self.time_s / self.optimal_time_s
 
     def summary(self):
-        """The JSON-ready figures plus identification.
+        """The JSON-ready figures of the run plus identification.
 
         Returns
         -------

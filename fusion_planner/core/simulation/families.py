@@ -278,10 +278,7 @@ def _corridors(rng, seed):
     corr_y = rng.integers(widths_lo, widths_hi + 1, size=nby + 1)  # horizontal corridors
     block_x = np.array([_cells(v, res) for v in rng.uniform(*CORRIDOR_BLOCK_X_M, size=nbx)])
     block_y = np.array([_cells(v, res) for v in rng.uniform(*CORRIDOR_BLOCK_Y_M, size=nby)])
-    x_edges = wall + np.concatenate([[0], np.cumsum(np.ravel(np.column_stack(
-        [corr_x[:-1], block_x])))])  # corridor start, block start, corridor start, ...
-    y_edges = wall + np.concatenate([[0], np.cumsum(np.ravel(np.column_stack(
-        [corr_y[:-1], block_y])))])
+    x_edges, y_edges = _edges(wall, corr_x, block_x), _edges(wall, corr_y, block_y)
     width = int(x_edges[-1] + corr_x[-1] + wall)
     height = int(y_edges[-1] + corr_y[-1] + wall)
     occ = _walled(height, width, res)
@@ -306,6 +303,26 @@ def _corridors(rng, seed):
                      f'{nbx} x {nby} blocks, corridors {min(corr_x.min(), corr_y.min()) * res:.1f}-'
                      f'{max(corr_x.max(), corr_y.max()) * res:.1f} m wide, {len(walkers)} people',
                      moving=walkers)
+
+
+def _edges(wall, corridors, blocks):
+    """First cells of corridor 0, block 0, corridor 1, block 1, ..., the last corridor.
+
+    Parameters
+    ----------
+    wall : int
+        Border wall [cells].
+    corridors : ndarray of int, shape (n + 1,)
+        Corridor widths [cells].
+    blocks : ndarray of int, shape (n,)
+        Block widths [cells].
+
+    Returns
+    -------
+    ndarray of int, shape (2 n + 1,)
+    """
+    widths = np.ravel(np.column_stack([corridors[:-1], blocks]))
+    return wall + np.concatenate([[0], np.cumsum(widths)])
 
 
 def _corridor_point(rng, strip, extent, robot):
