@@ -860,9 +860,12 @@ class FieldFollower(ControllerBase):
                       front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
             nearest = scene.nearest_ahead
         step = apf.adaptive_step(nearest, p.max_speed, p.apf)                         # eq. (18)
+        approach = p.approach_gain * goal_distance
+        if on_route:  # brake for the goal as late as for anything else in the way
+            approach = max(approach, braking_speed(goal_distance, p.max_accel,
+                                                   p.control_period))
         v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
-                    p.approach_gain * goal_distance,
-                    braking_speed(gap, p.max_accel, p.control_period))
+                    approach, braking_speed(gap, p.max_accel, p.control_period))
         if on_route:
             v_cap = min(v_cap, turn_cap(self._route, self._route.station, p))
         return self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)

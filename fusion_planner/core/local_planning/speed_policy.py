@@ -33,13 +33,13 @@ from fusion_planner.core.local_planning.route import TURN_BASE
 
 #: Fraction of ``max_omega`` a turn on the route may take at the capped
 #: speed; the rest is left to heading corrections.
-TURN_OMEGA_FRACTION = 0.6
+TURN_OMEGA_FRACTION = 0.8
 
 #: Lateral acceleration allowed in a turn, as a fraction of ``max_accel``.
 LATERAL_ACCEL_FRACTION = 1.0
 
 #: Fraction of ``TURN_BASE`` the turn rate may take to build up at ``max_alpha``.
-RAMP_FRACTION = 0.5
+RAMP_FRACTION = 1.0
 
 #: Heading changes [rad] over ``TURN_BASE`` below this are straight.
 STRAIGHT_TURN = 1e-3
