@@ -714,8 +714,14 @@ class FieldFollower(ControllerBase):
         on_people = ~off_circles(field, scene.circle_centres, scene.circle_radii)
         beside = route.nearest(field, *window)[0] >= blocking
         passing = self._passing_side != 0
-        beside = np.concatenate([np.where(on_people, passing, beside),
-                                 np.full(len(scene.field_points) - static, passing)])
+        # people behind the robot along the route (passed, or following) do not repel:
+        # pushing the robot away from them pushes it into the walls; the evasion check stays
+        tangent = route.tangent_at(station)
+        behind = (field - q) @ tangent < 0.0
+        people_behind = (scene.circle_centres - q) @ tangent < -scene.circle_radii
+        samples = (len(scene.field_points) - static) // max(len(scene.tracked), 1)
+        beside = np.concatenate([np.where(on_people, passing | behind, beside),
+                                 passing | np.tile(people_behind, samples)])
         scene.repelling = (scene.field_points[~beside], scene.field_velocities[~beside],
                            scene.field_weights[~beside])
         carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]), people)[0]
