@@ -16,7 +16,7 @@ import pytest
 
 from fusion_planner.core.local_planning import evasion
 from fusion_planner.core.local_planning.apf import ApfParams
-from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut
 from fusion_planner.core.local_planning.follow import (
     CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
     Observation, make_controller, thin_points)
@@ -368,20 +368,20 @@ def no_evasion(monkeypatch):
 def test_a_person_walking_into_a_trapped_robot_is_evaded(lateral, request):
     """Inside the U of Figure 5b, pinned by the field against its bottom, a person walks in.
 
-    The field alone keeps the robot in the local minimum until the person
+    The improved field straight to the goal (no route to shape it) alone keeps the robot in the local minimum until the person
     (who ignores the robot) walks into it; the evasion layer gets it out of
     the way in time.
     """
     p = params()
     start = (5.4, lateral, 0.0)
     walker = Mover(start=(2.0, lateral), velocity=(0.38, 0.0), radius=0.3)
-    run = simulate(make_controller('fusion', p), start, GOAL_U, SCENE_U, movers=[walker],
+    run = simulate(make_controller('apf', p), start, GOAL_U, SCENE_U, movers=[walker],
                    duration=25.0, block=True)
     assert run.min_mover_clearance > 0.1
     assert run.min_static_clearance > 0 and run.blocked_steps == 0
     assert_limits(run, p)
     request.getfixturevalue('no_evasion')
-    field_only = simulate(make_controller('fusion', p), start, GOAL_U, SCENE_U, movers=[walker],
+    field_only = simulate(make_controller('apf', p), start, GOAL_U, SCENE_U, movers=[walker],
                           duration=25.0, block=True)
     assert field_only.min_mover_clearance < 0           # the contact the evasion prevents
 
@@ -398,11 +398,21 @@ def test_evasion_keeps_a_safe_command():
     assert evade_now((0.5, 0.1), np.zeros((0, 5))) == (0.5, 0.1, False)
 
 
-def test_evasion_backs_away_from_a_person_walking_at_the_robot():
-    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]])
+#: A slit 0.9 m wide along x: no room to step aside of a person in it.
+SLIT = np.vstack([wall((-2.0, -0.45), (3.0, -0.45), spacing=0.05),
+                  wall((-2.0, 0.45), (3.0, 0.45), spacing=0.05)])
+
+
+def test_evasion_backs_away_from_a_person_walking_at_the_robot_in_a_slit():
+    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]], SLIT)
     assert evading
     assert -evasion.REVERSE_FRACTION * params().max_speed - EPS <= v < 0.0
     assert abs(omega) <= params().max_omega + EPS
+
+
+def test_evasion_steps_aside_rather_than_back_away_where_there_is_room():
+    v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]])
+    assert evading and v >= 0.0 and abs(omega) > 0.0
 
 
 def test_evasion_does_not_back_into_a_wall():
@@ -413,7 +423,7 @@ def test_evasion_does_not_back_into_a_wall():
 
 def test_evasion_ignores_scan_points_on_the_tracked_person():
     person = [[1.2, 0.0, -0.35, 0.0, 0.3]]
-    v, _, _ = evade_now((0.0, 0.0), person, circle((1.2, 0.0), 0.3))
+    v, _, _ = evade_now((0.0, 0.0), person, np.vstack([SLIT, circle((1.2, 0.0), 0.3)]))
     assert v < 0.0                                              # the person is not a wall
 
 
@@ -435,22 +445,44 @@ def test_fusion_asks_for_a_new_plan_when_the_path_is_blocked():
     run = simulate(controller, (0.0, 0.0, 0.0), [8.0, 0.0], blocker, duration=60.0)
     assert reached(run), run.final
     assert calls and calls[0] > 0                     # the blocking points were remembered
-    assert controller.replans >= 1 and controller.stuck_events >= 1
+    assert controller.replans >= 1 and controller.stuck_events == 0   # before being stuck
     assert run.min_static_clearance > 0
 
 
 def test_failed_replanning_falls_back_to_boundary_following():
+    """A replan that fails without proving anything (out of time) leaves the escape going."""
     p = params()
     calls = []
 
     def replan(start, goal, seen):
         calls.append(1)
-        raise NoValidPathCouldBeFound('no way in this test')
+        raise PlannerTimedOut('out of time in this test')
 
     controller = make_controller('fusion', p, replan=replan)
     run = simulate(controller, (0.0, 0.0, 0.0), GOAL_U, SCENE_U, duration=90.0)
     assert reached(run), run.final
     assert calls and controller.replans == 0 and controller.stuck_events >= 1
+
+
+def test_a_replan_proving_the_goal_unreachable_stops_the_robot_with_no_path():
+    p = params()
+
+    def replan(start, goal, seen):
+        raise NoValidPathCouldBeFound('walled in, in this test')
+
+    controller = make_controller('fusion', p, replan=replan)
+    run = simulate(controller, (0.0, 0.0, 0.0), GOAL_U, SCENE_U, duration=40.0)
+    assert run.final.status == 'no_path' and 'unreachable' in run.final.reason
+    proven = controller.no_path_proven_at
+    assert proven is not None
+    ended = run.statuses.index('no_path') * DT
+    assert proven <= ended <= proven + 2.0                       # braked, then no_path
+    assert run.final.v == 0.0 and run.final.omega == 0.0
+    assert np.allclose(run.measured[-1], 0.0)                   # standing still
+    assert 'stuck_escaping' not in run.statuses[run.statuses.index('no_path'):]
+    controller.set_path(np.array([[0.0, 0.0], [0.5, 0.0]]), np.array([[0.0, 0.0], [0.5, 0.0]]))
+    obs = Observation(run.poses[-1], np.zeros(2), SCENE_U, np.zeros((0, 5)), 50.0)
+    assert controller.compute(obs).status != 'no_path'         # a new plan clears it
 
 
 def test_grid_replanner_plans_around_seen_points():

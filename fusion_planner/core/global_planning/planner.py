@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fusion_planner.core import distance_transform
-from fusion_planner.core.global_planning import metrics, refine, search
+from fusion_planner.core.global_planning import centring, metrics, refine, search
 from fusion_planner.core.errors import (
     GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
 from fusion_planner.core.grid import GridMap
@@ -66,6 +66,11 @@ class PlannerConfig:
         Ignored by the other algorithms and neighbourhoods.
     refine : bool
         Remove redundant nodes and smooth (section 1.3.3, Table 2).
+    centre : bool
+        After refining, centre the path in its free corridor up to
+        ``robot_radius + safety_distance`` of clearance
+        (:func:`~fusion_planner.core.global_planning.centring.centre_path`;
+        beyond the paper): the path a local controller can drive at speed.
     robot_radius : float
         Robot radius [m]; obstacles are inflated by it for the search.
     safety_distance : float
@@ -86,6 +91,7 @@ class PlannerConfig:
     gamma: float = 0.2
     jump_points: bool = True
     refine: bool = True
+    centre: bool = True
     robot_radius: float = 0.0
     safety_distance: float = 0.0
     path_spacing: float = None
@@ -269,6 +275,8 @@ class GlobalPlanner:
             spacing = cfg.path_spacing or grid.resolution / 2
             path = refine.smooth_path(
                 grid, key_nodes, cfg.robot_radius, cfg.safety_distance, spacing)
+            if cfg.centre:
+                path = centring.centre_path(grid, path, cfg.robot_radius, cfg.safety_distance)
         else:
             key_nodes = grid_path[metrics.key_point_indices(grid_path)]
             path = grid_path

@@ -82,7 +82,10 @@ class FollowerParams:
         Net progress toward the sub-goal [m], > 0, that must be made within
         the window.
     escape_time_limit : float
-        Longest escape episode [s], > 0, before status ``'failed'``.
+        Longest time without progress toward the goal [s], > 0, before
+        status ``'failed'`` (see
+        :mod:`~fusion_planner.core.local_planning.progress`; a field
+        controller without escape fails at its first local minimum).
     robot_radius : float
         Robot radius [m], >= 0.
     prediction_horizon : float
@@ -127,7 +130,7 @@ class FollowerParams:
     control_period: float = 0.05
     stuck_window: float = 4.0
     stuck_progress: float = 0.15
-    escape_time_limit: float = 60.0
+    escape_time_limit: float = 30.0
     robot_radius: float = 0.2
     prediction_horizon: float = 2.0
     heading_gain: float = 2.5

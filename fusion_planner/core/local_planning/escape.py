@@ -16,7 +16,10 @@ continues) an escape :class:`Episode`, whose steps
    the way to it is free.
 
 An episode ends when the robot passes the key node it escaped to or leaves
-the boundary; one still open after ``escape_time_limit`` is a failure.
+the boundary. The run's bound is not the episode's age but the time without
+progress toward the goal (:mod:`~fusion_planner.core.local_planning.progress`):
+past ``escape_time_limit`` it is a failure; a replan that proves the goal
+unreachable ends it in ``'no_path'``.
 
 Examples
 --------

@@ -27,11 +27,14 @@ Evasion
     the static points (scan points not on a tracked obstacle): a rollout that
     would come within :data:`STATIC_MARGIN` of them (or closer than now)
     stops there, pinned, and one that would do so within
-    :data:`STATIC_HORIZON` is refused. The latest predicted contact wins,
-    then the least intrusion into the margin (its time integral [m s]), then
-    the most progress along the desired direction. It is the only place a
-    controller reverses: backing away is often the quickest way out of a
-    person's path, but not into a corner.
+    :data:`STATIC_HORIZON` is refused. Candidates that do not reverse and
+    keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
+    motion are preferred when there are any; then the latest predicted
+    contact wins, then the least intrusion into the margin (its time
+    integral [m s]), then the most progress along the desired direction. It
+    is the only place a controller reverses: backing away is sometimes the
+    only way out of a person's path, but not into a corner, and not when
+    waiting beside them will do.
 
 Frames and units: map frame, metres, seconds, radians throughout.
 
@@ -44,7 +47,12 @@ Examples
 >>> walker = np.array([[1.2, 0.0, -0.35, 0.0, 0.3]])     # walks at the robot
 >>> v, omega, evading = evade(pose, velocity, (0.0, 0.0), np.array([1.0, 0.0]),
 ...                           walker, np.zeros((0, 2)), p)
->>> evading, v < 0.0                                       # it backs away
+>>> evading, v >= 0.0, omega != 0.0                        # in the open, it steps aside
+(True, True, True)
+>>> walls = np.array([[x, y] for x in np.linspace(-2.0, 3.0, 60) for y in (-0.45, 0.45)])
+>>> v, omega, evading = evade(pose, velocity, (0.0, 0.0), np.array([1.0, 0.0]),
+...                           walker, walls, p)
+>>> evading, v < 0.0                                       # in a slit, it backs away
 (True, True)
 """
 
@@ -81,6 +89,16 @@ STATIC_MARGIN = 0.03
 #: this time [s] is refused: longer than braking from ``max_speed`` (the
 #: check is repeated every step).
 STATIC_HORIZON = 1.0
+
+#: Clearance [m] from the obstacles' predicted (not grown) motion that lets an
+#: evasion wait or go on forward, rather than back away: a person walking past
+#: a robot that has pulled to the side is let pass.
+YIELD_MARGIN = 0.02
+
+#: ... and that keeps clear of the grown obstacles for this long [s]: the
+#: prediction's uncertainty is not ignored, only not extrapolated so far that
+#: backing away always looks safer.
+YIELD_SAFE_TIME = 1.0
 
 #: Fastest reverse speed of an evasion, as a fraction of ``max_speed``.
 REVERSE_FRACTION = 0.5
@@ -141,7 +159,7 @@ def rollout(pose, velocity, targets, params):
     return np.stack([x, y], axis=-1)
 
 
-def obstacle_gaps(paths, tracked, robot_radius):
+def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE):
     """Gap [m] between each rollout sample and the nearest predicted, grown tracked obstacle.
 
     Parameters
@@ -152,18 +170,20 @@ def obstacle_gaps(paths, tracked, robot_radius):
         ``x, y, vx, vy, radius`` [m, m, m/s, m/s, m], finite, ``K >= 1``.
     robot_radius : float
         [m].
+    growth : float
+        Growth of the obstacles' radii [m/s] over the look-ahead.
 
     Returns
     -------
     ndarray, float64, shape (C, T)
         Distance from the robot's boundary to the nearest obstacle predicted
-        at constant velocity, its radius grown by ``UNCERTAINTY_RATE * t``;
-        negative: predicted contact.
+        at constant velocity, its radius grown by ``growth * t``; negative:
+        predicted contact.
     """
     times = _times()[:, None]                                                  # (T, 1)
     dx = paths[:, :, 0:1] - (tracked[:, 0] + times * tracked[:, 2])            # (C, T, K)
     dy = paths[:, :, 1:2] - (tracked[:, 1] + times * tracked[:, 3])
-    reach = robot_radius + tracked[:, 4] + UNCERTAINTY_RATE * times            # (T, K)
+    reach = robot_radius + tracked[:, 4] + growth * times                      # (T, K)
     return (np.sqrt(dx * dx + dy * dy) - reach).min(axis=2)
 
 
@@ -264,7 +284,12 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     A candidate that would come closer to a static point than allowed stops
     there in its rollout (it is pinned, and an obstacle may still walk into
     it); one that would do so within :data:`STATIC_HORIZON` is refused
-    unless every candidate would. Among the others the choice is
+    unless every candidate would. When some of the others do not reverse
+    and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
+    motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
+    choice is among those, and among those of them that do not
+    lose ground along ``desired`` if there are any: the robot yields (waits,
+    or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
     obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
     most progress along ``desired``.
@@ -287,9 +312,16 @@ def evade(pose, velocity, command, desired, tracked, points, params):
         allowed = blocked == np.max(blocked)
     paths = _held(paths, q, blocked)
     gaps = obstacle_gaps(paths, tracked, radius)
+    progress = (paths[:, -1] - q) @ desired
+    soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
+    yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
+        & np.all(obstacle_gaps(paths, tracked, radius, growth=0.0) >= YIELD_MARGIN, axis=1)
+    if np.any(yielding):
+        allowed = yielding
+        if np.any(yielding & (progress >= 0.0)):
+            allowed = yielding & (progress >= 0.0)  # wait or go on; do not turn back
     contact = _first(gaps < 0.0)
     intrusion = np.maximum(MOVING_MARGIN - gaps, 0.0).sum(axis=1) * ROLLOUT_STEP
-    progress = (paths[:, -1] - q) @ desired
     best = allowed & (contact == np.max(contact[allowed]))
     best &= intrusion <= np.min(intrusion[best]) + INTRUSION_TOLERANCE
     choice = int(np.argmax(np.where(best, progress, -np.inf)))

@@ -14,8 +14,9 @@ prediction of tracked obstacles and escape from local minima. Each step
 2. the *sub-goal*: key nodes are passed when reached or when a later one is
    visible with ``sight_clearance`` to spare;
 3. the *direction*: the total force at the robot, attracted to a carrot at
-   most ``lookahead`` ahead, or the boundary tangent while escaping (see
-   :mod:`fusion_planner.core.local_planning.escape`);
+   most ``lookahead`` ahead (for fusion, on the route and centred in its free
+   band, see :meth:`FieldFollower._shape`), or the boundary tangent while
+   escaping (see :mod:`fusion_planner.core.local_planning.escape`);
 4. the *command*: heading control under the speed caps (adaptive step of
    eq. (18), approach, braking), then, with prediction, the evasion check of
    :mod:`fusion_planner.core.local_planning.evasion`, then the velocity and acceleration
@@ -43,11 +44,17 @@ import numpy as np
 from fusion_planner.core.local_planning import apf, escape, evasion
 from fusion_planner.core.local_planning.controller_base import (
     LOCAL_PLAN_POINTS, Command, ControllerBase, WindowHistory, as_path)
-from fusion_planner.core.errors import InvalidInput, PlanningError
+from fusion_planner.core.errors import (
+    GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
 from fusion_planner.core.local_planning.local_geometry import (
-    braking_speed, circle_points, front_gap, points_off_circles, segments_clear, thin_points)
+    braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
+    thin_points)
+from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
+from fusion_planner.core.local_planning.route import Route
+from fusion_planner.core.local_planning.speed_policy import braking_path_gap, turn_cap
+from fusion_planner.core.local_planning.yielding import passing_bounds
 
 LOGGER = logging.getLogger(__name__)
 
@@ -78,6 +85,51 @@ ROLLOUT_MAX_STEP = 0.2
 #: A force shorter than this has no direction: the robot stops (a minimum).
 FORCE_EPS = 1e-9
 
+#: A route follower this close [m] to a tracked obstacle is giving way: a
+#: lack of progress then is no local minimum (the time without progress
+#: still counts toward ``escape_time_limit``).
+GIVING_WAY_GAP = 0.5
+
+#: Shortest time [s] between two replans asked for because the route is blocked.
+BLOCKED_REPLAN_PERIOD = 2.0
+
+#: Replanning outcomes that prove the goal unreachable around what was seen.
+UNREACHABLE = (NoValidPathCouldBeFound, GoalOccupied)
+
+#: Below these speeds [m/s, rad/s] the robot counts as stopped.
+STOPPED_SPEED = 1e-3
+STOPPED_TURN = 1e-2
+
+#: A static point closer to the route than this fraction of the robot radius
+#: blocks it (the field pushes the robot off the route around it); a point
+#: farther away is beside the route and bounds the band the carrot is
+#: centred in (see ``FieldFollower._shape``). The planner
+#: checks clearance at cell resolution, so a route may pass a wall's face a
+#: little closer than the radius: that wall is still beside the route.
+BLOCKING_FRACTION = 0.5
+
+#: Clearance [m] from the points beside the route that the carrot keeps where
+#: there is room; in a passage narrower than twice this (plus the robot) the
+#: carrot is centred.
+KEEP_CLEARANCE = 0.12
+
+#: A static point this close [m] to the robot's boundary is grazed: the
+#: route follower's direction is turned away from it (the field direction plus
+#: the unit vector away from the point), since the band steers but a robot
+#: already grazing a post may only get off it by turning away.
+NEAR_GAP = 0.01
+
+#: Gap [m] the band keeps from the points beside the route even where it is
+#: narrow (the carrot is centred in what is left).
+MIN_WALL_GAP = 0.03
+
+#: Shortest carrot distance [m] along the route (see ``FieldFollower._shape``).
+MIN_LOOKAHEAD = 0.2
+
+#: Slack [m] below the robot's present clearance that the line to the carrot
+#: may keep (floating point and the discretisation of the band only).
+CLEARANCE_SLACK = 1e-3
+
 
 @dataclass
 class _Scene:
@@ -89,6 +141,11 @@ class _Scene:
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
+                                  # (not measured for a route follower)
+    repelling: tuple = None       # route followers: (points, velocities, weights) that repel
+    carrot: np.ndarray = None     # (2,) the route follower's field goal [m]
+    graze: np.ndarray = None      # (2,) unit vector away from a static point grazed, or None
+    blocking: np.ndarray = None   # (B, 2) static points on the route ahead [m]
 
     @property
     def circle_centres(self):
@@ -169,12 +226,48 @@ class FieldFollower(ControllerBase):
         super()._clear_state()
         p = self.params
         self._index = 0
-        self._anchor = None  # start [m] of the segment leading to the current key node
         self._progress = WindowHistory(p.stuck_window, p.control_period)  # sub-goal distances
         self._episode = None
         self._follow = None
         self._best_hit = {}
         self._last_time = None
+        self._monitor = ProgressMonitor(p.stuck_progress)
+        self._unreachable = None  # why the goal cannot be reached, once a replan proved it
+        self._passing_side = 0    # side kept for the people on the route (see yielding)
+        self._last_replan = -math.inf  # when a new plan was last asked for [s]
+        self._plan_route = self._route = None
+        if self.use_key_nodes and self._path is not None:
+            self._set_plan_route()
+
+    # .. the route (key-node followers) ..............................................
+
+    def _set_plan_route(self):
+        """Make the global path the route, and place the key nodes on it."""
+        path = self._path
+        if math.hypot(*(path[-1] - self._key_nodes[-1])) > 0.0:
+            path = np.vstack([path, self._key_nodes[-1]])
+        self._plan_route = self._route = Route(path)
+        arcs, s = [], 0.0
+        for node in self._key_nodes:
+            s = self._plan_route.arc_of(node, start=s)
+            arcs.append(s)
+        self._plan_node_arcs = self._node_arcs = np.array(arcs)
+
+    def _route_from(self, q, index):
+        """Drive from ``q`` straight to key node ``index``'s place on the plan, then along it."""
+        plan = self._plan_route
+        first = plan.index_at(self._plan_node_arcs[index])
+        joint = plan.points[first]
+        self._route = Route(np.vstack([q, plan.points[first:]]))
+        self._node_arcs = self._plan_node_arcs - plan.arc[first] + math.hypot(*(joint - q))
+        self._monitor.rebase(self._remaining(q))
+
+    def _remaining(self, q):
+        """Distance [m] still to go: along the route (plus the way back to it), else straight."""
+        route = self._route
+        if route is None:
+            return math.hypot(*(self._key_nodes[-1] - q))
+        return route.remaining + math.hypot(*(q - route.point_at(route.station)))
 
     # .. obstacles ....................................................................
 
@@ -199,7 +292,8 @@ class FieldFollower(ControllerBase):
                       field_velocities=np.vstack([np.zeros_like(thinned), velocities]),
                       field_weights=np.concatenate([np.ones(len(thinned)), weights]),
                       all_points=points, tracked=tracked,
-                      nearest_ahead=self._nearest_ahead(obs.pose, thinned, tracked))
+                      nearest_ahead=(math.inf if self._route is not None  # braking path instead
+                                     else self._nearest_ahead(obs.pose, thinned, tracked)))
 
     def _tracked_field(self, obs, tracked):
         """Field points of the tracked obstacles: nearest surface points at predicted positions.
@@ -277,25 +371,14 @@ class FieldFollower(ControllerBase):
         """The goal the field attracts to (a carrot), given the current sub-goal.
 
         Classic field: the sub-goal itself (eqs. (9)-(14) as written).
-        Improved field with key nodes: the point ``lookahead`` beyond the
-        robot's projection on the segment from the previous key node (or from
-        where this sub-goal was chosen) to the sub-goal, never past the
-        sub-goal; segments between key nodes are collision-free on the map,
-        so a robot pushed off one returns to it instead of cutting a corner.
-        Improved field without key nodes: the point ``lookahead`` ahead on
+        Improved field with key nodes: see :meth:`_shape` (the route's
+        carrot). Improved field without key nodes: the point ``lookahead`` ahead on
         the straight line to the sub-goal. Either way ``rho_g`` of
         eqs. (15)-(16) stays bounded far from the goal and vanishes at it.
         """
         lookahead = self.params.lookahead
         if self.field == 'classic':
             return target
-        if self.use_key_nodes and self._anchor is not None:
-            segment = target - self._anchor
-            length = math.hypot(segment[0], segment[1])
-            if length > apf.DIRECTION_EPS:
-                along = float((q - self._anchor) @ segment) / length
-                reach = min(max(along, 0.0) + lookahead, length)
-                return self._anchor + segment * (reach / length)
         offset = target - q
         dist = math.hypot(offset[0], offset[1])
         if dist <= lookahead:
@@ -303,19 +386,26 @@ class FieldFollower(ControllerBase):
         return q + offset * (lookahead / dist)
 
     def _force(self, q, target, scene, robot_velocity):
-        """Total force at ``q``: eq. (14) (classic field) or eqs. (10) + (15)-(17) (improved)."""
+        """Total force at ``q``: eq. (14) (classic field) or eqs. (10) + (15)-(17) (improved).
+
+        A route follower's field is shaped by its route (:meth:`_shape`):
+        the static points beside the route do not repel, they shift the
+        carrot it attracts to; points on the route and tracked obstacles
+        repel as in the paper.
+        """
         ap = self.params.apf
-        goal = self._field_goal(q, target)
+        goal = self._field_goal(q, target) if scene.carrot is None else scene.carrot
         force = apf.attractive_force(q, goal, ap, check=False)                      # eq. (10)
         if self.field == 'classic':
             return force + apf.classic_repulsive_force(                            # eq. (14)
                 q, scene.field_points, ap, scene.field_weights, check=False)
+        points, velocities, weights = scene.repelling or (
+            scene.field_points, scene.field_velocities, scene.field_weights)
         force = force + apf.improved_repulsive_force(                              # eqs. (15)-(16)
-            q, goal, scene.field_points, ap, scene.field_weights, check=False)
+            q, goal, points, ap, weights, check=False)
         if robot_velocity is not None:
             force = force + apf.velocity_repulsion(                                 # eq. (17)
-                q, robot_velocity, scene.field_points, scene.field_velocities, ap,
-                scene.field_weights, check=False)
+                q, robot_velocity, points, velocities, ap, weights, check=False)
         return force
 
     def _rollout(self, q, target, scene, first_direction):
@@ -361,12 +451,13 @@ class FieldFollower(ControllerBase):
             return
         p = self.params
         last = len(self._key_nodes) - 1
+        station = self._route.station
         for _ in range(len(self._key_nodes)):  # bounded: each pass advances or stops
             if self._index >= last:
                 break
-            if math.hypot(*(self._key_nodes[self._index] - q)) > p.goal_tolerance:
+            if math.hypot(*(self._key_nodes[self._index] - q)) > p.goal_tolerance \
+                    and self._node_arcs[self._index] > station + p.goal_tolerance:
                 break
-            self._anchor = self._key_nodes[self._index].copy()
             self._index += 1
         if self._index >= last:
             return
@@ -382,7 +473,7 @@ class FieldFollower(ControllerBase):
                                     half + scene.circle_radii)
         if np.any(clear):
             self._index = int(later[in_range][np.nonzero(clear)[0][-1]])
-            self._anchor = q.copy()
+            self._route_from(q, self._index)
 
     # .. stuck detection and escape ...................................................
 
@@ -402,7 +493,7 @@ class FieldFollower(ControllerBase):
         LOGGER.info('local minimum at %s (event %d); escaping', where, self.stuck_events)
         if self.use_key_nodes and not episode.skipped and self._index < len(self._key_nodes) - 1:
             self._index += 1  # the paper's escape: aim at the next A* key node
-            self._anchor = q.copy()
+            self._route_from(q, self._index)
             episode.skipped = True
             episode.index = self._index
             return None
@@ -411,13 +502,36 @@ class FieldFollower(ControllerBase):
             if self._replan_now(obs, q, scene):
                 episode.index = self._index
                 return None
+            if self._unreachable is not None:
+                return None
         key = self._index
-        self._best_hit[key] = min(self._best_hit.get(key, math.inf), target_distance)
+        straight = math.hypot(*(self._key_nodes[key] - q))  # what may_leave compares against
+        self._best_hit[key] = min(self._best_hit.get(key, math.inf), straight)
         self._follow = BoundaryFollow()
         return None
 
+    def _route_blocked(self, obs, scene):
+        """Whether to replan now: static points the map did not show block the route just ahead.
+
+        Like a navigation stack whose path is blocked, fusion with a
+        replanner asks for a new plan as soon as a static point lies on the
+        route within ``lookahead`` ahead, instead of waiting to be stuck in
+        front of it; at most once per :data:`BLOCKED_REPLAN_PERIOD`, and not
+        while escaping.
+        """
+        p = self.params
+        route = self._route
+        if (self._replan is None or self._follow is not None or self._episode is not None
+                or len(scene.blocking) == 0
+                or obs.time - self._last_replan < BLOCKED_REPLAN_PERIOD):
+            return False
+        ahead = route.along_to_first(scene.blocking, route.station, route.station + p.lookahead,
+                                     p.robot_radius + p.safety_distance)
+        return math.isfinite(ahead)
+
     def _replan_now(self, obs, q, scene):
         """Ask for a global plan around everything seen so far; True on success."""
+        self._last_replan = obs.time
         self._remember(obs, scene, force=True)
         goal = self._key_nodes[-1].copy()
         try:
@@ -426,10 +540,19 @@ class FieldFollower(ControllerBase):
             key_nodes = as_path(key_nodes, 'replanned key_nodes')
         except PlanningError as err:
             LOGGER.info('replanning from (%.2f, %.2f) failed: %s', q[0], q[1], err)
+            if isinstance(err, UNREACHABLE):
+                self._unreachable = (f'the goal is unreachable around the obstacles seen '
+                                     f'(replanned from ({q[0]:.2f}, {q[1]:.2f})): {err}')
+                if self.no_path_proven_at is None:
+                    self.no_path_proven_at = obs.time
             return False
-        self._path, self._key_nodes = path, key_nodes
+        # the planner ends at the goal's cell centre; the goal stays the one asked for
+        self._path = np.vstack([path[:-1], goal])
+        self._key_nodes = np.vstack([key_nodes[:-1], goal])
         self._index = 0
-        self._anchor = q.copy()
+        self._set_plan_route()
+        self._route.project(q)
+        self._monitor.rebase(self._remaining(q))
         self._best_hit = {}
         self._progress.clear()
         self._advance_sub_goal(q, scene)
@@ -449,11 +572,13 @@ class FieldFollower(ControllerBase):
         Returns
         -------
         Command
-            ``'no_path'`` before a plan; ``'arrived'`` inside the goal
-            tolerance (braking to rest); ``'failed'`` after an escape timed out
-            (or at the first minimum without escape), until a new path or a
-            reset; otherwise ``'moving'``, or ``'stuck_escaping'`` while an
-            escape episode is open.
+            ``'no_path'`` before a plan, or once a replan proved the goal
+            unreachable and the robot stands still; ``'arrived'`` inside the
+            goal tolerance (braking to rest); ``'failed'`` after
+            ``escape_time_limit`` without progress toward the goal (or at the
+            first minimum without escape), until a new path or a reset;
+            otherwise ``'moving'``, or ``'stuck_escaping'`` while an escape
+            episode is open or the robot brakes for a proven ``'no_path'``.
 
         Raises
         ------
@@ -463,6 +588,8 @@ class FieldFollower(ControllerBase):
         stop = self._checked_stop(obs)
         if stop is not None:
             return stop
+        if self._unreachable is not None:
+            return self._stop_unreachable(obs)
         p = self.params
         if self._last_time is not None and obs.time < self._last_time:
             self._progress.clear()  # the clock went back (simulation reset)
@@ -473,21 +600,31 @@ class FieldFollower(ControllerBase):
             return self._stop(obs, 'arrived', sub_goal=self._key_nodes[-1].copy())
         scene = self._scene(obs)
         self._remember(obs, scene)
+        if self._route is not None:
+            self._route.project(q)
         self._update_sub_goal(q, scene)
         target = self._key_nodes[self._index]
-        if self._episode is not None and obs.time - self._episode.start > p.escape_time_limit:
-            reason = (f'still stuck after {p.escape_time_limit:g} s of escape near '
+        if self._monitor.update(obs.time, self._remaining(q)) > p.escape_time_limit:
+            reason = (f'stuck: no progress toward the goal for {p.escape_time_limit:g} s, near '
                       f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
             return self._fail(obs, reason, target.copy())
         direction, reason = self._escape_direction(obs, scene)
         if reason is not None:
             return self._fail(obs, reason, target.copy())
-        target = self._key_nodes[self._index]  # an escape step may have changed it
+        if self._route is not None:
+            self._shape(scene, q)
+            if self._route_blocked(obs, scene) and self._replan_now(obs, q, scene):
+                self._shape(scene, q)  # around what blocked the old route
+        if self._unreachable is not None:
+            return self._stop_unreachable(obs)
+        target = self._key_nodes[self._index]  # an escape step or a replan may have changed it
         if self._follow is None:
             yaw = obs.pose[2]
             robot_velocity = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
             force = self._force(q, target, scene,
                                 robot_velocity if self.field == 'improved' else None)
+            if scene.graze is not None:
+                force = force / max(math.hypot(force[0], force[1]), FORCE_EPS) + scene.graze
             norm = math.hypot(force[0], force[1])
             direction = force / norm if norm > FORCE_EPS else None
             plan = self._rollout(q, target, scene, direction)
@@ -502,6 +639,150 @@ class FieldFollower(ControllerBase):
             command = self._field_command(obs, scene, direction, goal_distance)
             v, w = self._evade(obs, scene, command, direction)
         return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
+
+    def _target_distance(self, q):
+        """Distance [m] to the sub-goal: along the route for a route follower, else straight."""
+        target = self._key_nodes[self._index]
+        route = self._route
+        if route is None:
+            return math.hypot(*(target - q))
+        off = math.hypot(*(q - route.point_at(route.station)))
+        return max(self._node_arcs[self._index] - route.station, 0.0) + off
+
+    def _shape(self, scene, q):
+        """Shape the field by the route: split the static points, place the carrot.
+
+        A static point within :data:`BLOCKING_FRACTION` of the robot radius
+        of the route ahead blocks it and repels as in the paper (within the
+        whole radius where the points on either side leave the robot no room
+        to pass: the route is closed there, see :meth:`_route_fits`); the others
+        lie beside the route and repel nothing (a passage's walls would hold
+        the robot back at its entrance, and their steep, opposed pushes make
+        it weave inside); one within :data:`NEAR_GAP` of the robot is grazed. They bound the free band about the route from the
+        robot's station to the carrot, the route point ``lookahead`` ahead;
+        the carrot is shifted across the route to keep
+        :data:`KEEP_CLEARANCE` from them where the band is wide enough, to
+        the band's middle where it is not. Where the straight line to the
+        carrot would graze a point beside the route (cutting a corner the
+        route goes round), the lookahead is halved, down to
+        :data:`MIN_LOOKAHEAD`; the line need not keep more clearance than
+        the robot has now. People on the route ahead narrow the band to the
+        side of them the robot keeps to
+        (:mod:`~fusion_planner.core.local_planning.yielding`); while it keeps
+        to a side, the tracked obstacles do not repel either.
+        """
+        p = self.params
+        route = self._route
+        station = route.station
+        window = (station - p.robot_radius, station + p.lookahead + p.robot_radius)
+        blocking = BLOCKING_FRACTION * p.robot_radius
+        # the band and the braking path are measured on every static scan point, not the
+        # thinned ones of the field: a post's corner a few centimetres away matters here
+        points = scene.all_points
+        d = points - q
+        reach = math.hypot(*(route.point_at(station) - q)) + p.lookahead + 2.0 * p.robot_radius
+        points = points[np.einsum('ij,ij->i', d, d) <= reach * reach]
+        points = points_off_circles(points, scene.circle_centres, scene.circle_radii)
+        distance, index = route.nearest(points, *window)
+        if not self._route_fits(route.signed_offsets(points, distance, index), index):
+            blocking = p.robot_radius  # what narrows the route below the robot blocks it
+        on_route = distance < blocking
+        if len(points):
+            away = q - points
+            reach = np.hypot(away[:, 0], away[:, 1])
+            nearest = int(np.argmin(reach))
+            if reach[nearest] - p.robot_radius < NEAR_GAP:
+                scene.graze = away[nearest] / max(reach[nearest], FORCE_EPS)
+        scene.blocking = points[on_route]
+        side = points[~on_route]
+        offsets = route.signed_offsets(side, distance[~on_route], index[~on_route])
+        side_index = index[~on_route]
+        half_width = p.robot_radius + p.safety_distance
+        if len(side):
+            # never demand more clearance of the line than the robot has now
+            nearest = math.sqrt(float(np.min(np.einsum('ij,ij->i', side - q, side - q))))
+            half_width = min(half_width, nearest - CLEARANCE_SLACK)
+        wall_left = np.min(offsets[offsets > 0], initial=math.inf)
+        wall_right = np.min(-offsets[offsets < 0], initial=math.inf)
+        *people, self._passing_side = passing_bounds(route, scene.tracked, wall_left, wall_right,
+                                                     p, self._passing_side)
+        # which points of the field repel; people being passed bound the band, like
+        # walls, and the evasion check keeps them safe
+        static = len(scene.field_points) - len(scene.tracked) * (
+            PREDICTION_SAMPLES if self.predict and p.prediction_horizon > 0 else 1)
+        field = scene.field_points[:static]
+        on_people = ~off_circles(field, scene.circle_centres, scene.circle_radii)
+        beside = route.nearest(field, *window)[0] >= blocking
+        passing = self._passing_side != 0
+        # people behind the robot along the route (passed, or following) do not repel:
+        # pushing the robot away from them pushes it into the walls; the evasion check stays
+        tangent = route.tangent_at(station)
+        behind = (field - q) @ tangent < 0.0
+        people_behind = (scene.circle_centres - q) @ tangent < -scene.circle_radii
+        samples = (len(scene.field_points) - static) // max(len(scene.tracked), 1)
+        beside = np.concatenate([np.where(on_people, passing | behind, beside),
+                                 passing | np.tile(people_behind, samples)])
+        scene.repelling = (scene.field_points[~beside], scene.field_velocities[~beside],
+                           scene.field_weights[~beside])
+        carrot = self._centred_carrots(offsets, side_index, np.array([p.lookahead]), people)[0]
+        if p.lookahead > MIN_LOOKAHEAD and not segments_clear(q, carrot[None, :], side,
+                                                              half_width)[0]:
+            halvings = int(math.ceil(math.log2(p.lookahead / MIN_LOOKAHEAD)))
+            shorter = np.maximum(p.lookahead * 0.5**np.arange(1, halvings + 1), MIN_LOOKAHEAD)
+            carrots = self._centred_carrots(offsets, side_index, shorter, people)
+            clear = np.append(segments_clear(q, carrots[:-1], side, half_width), True)
+            carrot = carrots[int(np.argmax(clear))]
+        scene.carrot = carrot
+
+    def _route_fits(self, offsets, index):
+        """Whether the robot fits between the points on either side of the route ahead.
+
+        ``offsets`` [m] are the signed distances of the static points from
+        the route, ``index`` their nearest route points; only those beside
+        the route between the robot's station and ``lookahead`` ahead count.
+        """
+        p = self.params
+        route = self._route
+        inside = (index > route.index_at(route.station)) \
+            & (index < route.index_at(route.station + p.lookahead))
+        left = np.min(offsets[inside & (offsets > 0)], initial=math.inf)
+        right = np.min(-offsets[inside & (offsets < 0)], initial=math.inf)
+        return left + right >= 2.0 * p.robot_radius
+
+    def _centred_carrots(self, offsets, index, lookaheads, people):
+        """The route points ``lookaheads`` (C,) [m] ahead, each shifted across the free band to it.
+
+        ``offsets`` [m] are the signed distances of the points beside the
+        route from their nearest route points, ``index`` the indices of
+        those; only points beside the route between the robot's station
+        (less a radius) and a carrot bound its band. ``people`` are the
+        bounds ``(room_left, room_right)`` [m] of
+        :func:`~fusion_planner.core.local_planning.yielding.passing_bounds`.
+        Returns ``(C, 2)`` [m].
+        """
+        p = self.params
+        route = self._route
+        ends = route.station + lookaheads
+        last = np.array([route.index_at(end) for end in ends])
+        inside = (index > route.index_at(route.station - p.robot_radius)) \
+            & (index < last[:, None])                                       # (C, M)
+        left = np.where(inside & (offsets > 0), offsets, math.inf)
+        right = np.where(inside & (offsets < 0), -offsets, math.inf)
+        wall = p.robot_radius + MIN_WALL_GAP
+        room_left = np.minimum(np.min(left, axis=1, initial=math.inf) - wall, people[0])
+        room_right = np.minimum(np.min(right, axis=1, initial=math.inf) - wall, people[1])
+        with np.errstate(invalid='ignore'):  # inf - inf where no point bounds either side
+            middle = 0.5 * (room_left - room_right)
+        keep = np.minimum(np.maximum(0.0, KEEP_CLEARANCE - room_right), room_left - KEEP_CLEARANCE)
+        shift = np.where(room_left + room_right < 2.0 * KEEP_CLEARANCE, middle, keep)
+        return np.array([route.point_at(end) + d * route.normal_at(end)
+                         for end, d in zip(ends, shift)])
+
+    def _stop_unreachable(self, obs):
+        """Brake once the goal is proven unreachable; ``'no_path'`` when the robot stands still."""
+        v, omega = obs.velocity
+        stopped = abs(v) <= STOPPED_SPEED and abs(omega) <= STOPPED_TURN
+        return self._stop(obs, 'no_path' if stopped else 'stuck_escaping', self._unreachable)
 
     def _update_sub_goal(self, q, scene):
         """Advance the sub-goal; a new one resets the progress window and boundary following."""
@@ -523,21 +804,26 @@ class FieldFollower(ControllerBase):
         p = self.params
         q = obs.pose[:2]
         target = self._key_nodes[self._index]
-        target_distance = math.hypot(*(target - q))
+        target_distance = self._target_distance(q)
         if self._follow is not None:
             best_hit = self._best_hit.get(self._index, math.inf)
             if not escape.may_leave(q, target, best_hit, scene.field_points, p):
                 direction = self._follow.direction(q, target, scene.field_points,
                                                    scene.field_weights, p)
                 if direction is None:  # nothing around: head for the sub-goal
-                    direction = (target - q) / max(target_distance, apf.DIRECTION_EPS)
+                    direction = (target - q) / max(math.hypot(*(target - q)), apf.DIRECTION_EPS)
                 return direction, None
             self._follow = None
             self._progress.clear()
+            if self._route is not None:
+                self._route_from(q, self._index)
         episode = self._episode
         if (episode is not None and not episode.skipped and episode.replans == 0
                 and target_distance < episode.target_distance - p.stuck_progress):
             self._episode = None  # progress again after boundary following
+        if self._waiting_for_people(q, scene):
+            self._progress.clear()  # giving way is not a local minimum (time still counts)
+            return None, None
         before = self._progress.push(obs.time, target_distance)
         if before is None or before - target_distance >= p.stuck_progress:
             return None, None
@@ -546,6 +832,15 @@ class FieldFollower(ControllerBase):
             return None, reason
         target = self._key_nodes[self._index]
         return self._follow.direction(q, target, scene.field_points, scene.field_weights, p), None
+
+    def _waiting_for_people(self, q, scene):
+        """Whether a route follower is giving way: keeping to a side, or a person close by."""
+        if self._route is None or len(scene.tracked) == 0:
+            return False
+        if self._passing_side != 0:
+            return True
+        gaps = np.hypot(*(scene.circle_centres - q).T) - scene.circle_radii - self.params.robot_radius
+        return bool(np.min(gaps) < GIVING_WAY_GAP)
 
     def _field_command(self, obs, scene, direction, goal_distance):
         """Heading control along ``direction`` under the speed caps: ``(v, omega)``.
@@ -556,14 +851,29 @@ class FieldFollower(ControllerBase):
         distance straight ahead.
         """
         p = self.params
-        step = apf.adaptive_step(scene.nearest_ahead, p.max_speed, p.apf)             # eq. (18)
-        v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
-                    p.approach_gain * goal_distance)
-        clearance = p.robot_radius + p.safety_distance
         points = scene.all_points
-        gap = min(front_gap(obs.pose, points, np.zeros(len(points)), clearance),
-                  front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
-        v_cap = min(v_cap, braking_speed(gap, p.max_accel, p.control_period))
+        circles = np.column_stack([scene.circle_centres, scene.circle_radii])
+        if self._passing_side != 0:
+            circles = circles[:0]  # keeping to one side of them: the evasion check keeps them safe
+        on_route = self._route is not None and self._follow is None
+        if on_route:
+            gap = braking_path_gap(obs.pose, self._route, self._route.station, points,
+                                   scene.blocking, circles, p)
+            nearest = gap
+        else:
+            clearance = p.robot_radius + p.safety_distance
+            gap = min(front_gap(obs.pose, points, np.zeros(len(points)), clearance),
+                      front_gap(obs.pose, scene.circle_centres, scene.circle_radii, clearance))
+            nearest = scene.nearest_ahead
+        step = apf.adaptive_step(nearest, p.max_speed, p.apf)                         # eq. (18)
+        approach = p.approach_gain * goal_distance
+        if on_route:  # brake for the goal as late as for anything else in the way
+            approach = max(approach, braking_speed(goal_distance, p.max_accel,
+                                                   p.control_period))
+        v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
+                    approach, braking_speed(gap, p.max_accel, p.control_period))
+        if on_route:
+            v_cap = min(v_cap, turn_cap(self._route, self._route.station, p))
         return self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
 
     def _evade(self, obs, scene, command, desired):

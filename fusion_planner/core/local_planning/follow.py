@@ -8,11 +8,16 @@ Five controllers share one interface (:class:`Controller`), made by
     sub-goals; the improved APF (eqs. (15)-(17)) steers around the sensed
     obstacle points and around tracked moving obstacles **at their predicted
     positions** over a horizon (beyond the paper); the adaptive step of
-    eq. (18) limits the speed near obstacles ahead; a short look-ahead check
-    replaces a command that would run into a tracked obstacle by an evasive
-    one (beyond the paper). When stuck it first aims at the next key node
-    (the paper's escape), then asks for a new global plan around what it has
-    seen (when given a replanner), then follows the blocking boundary.
+    eq. (18) limits the speed for what lies in the braking path; a short
+    look-ahead check replaces a command that would run into a tracked
+    obstacle by an evasive one (beyond the paper). Beyond the paper too, the
+    field is shaped by the global path it follows (the *route*: its carrot
+    is centred in the free band about the path, walls beside the path do not
+    hold it back), the speed is capped for the turn ahead, and people walking
+    along the route are passed on one side. When stuck it first aims at the
+    next key node (the paper's escape), then asks for a new global plan
+    around what it has seen (when given a replanner; a plan that cannot be
+    found ends in ``'no_path'``), then follows the blocking boundary.
 ``'apf'``
     The improved field straight to the final goal (no A*), with the same
     prediction and evasion; escape by boundary following.
@@ -41,6 +46,10 @@ module                                     what
 :mod:`~fusion_planner.core.local_planning.replanning`       obstacle memory and the grid replanner
 :mod:`~fusion_planner.core.local_planning.evasion`          look-ahead check against moving obstacles
 :mod:`~fusion_planner.core.local_planning.path_tracker`     the ``'astar-track'`` baseline
+:mod:`~fusion_planner.core.local_planning.route`            the global path as a route: station, carrot, offsets
+:mod:`~fusion_planner.core.local_planning.speed_policy`     speed for the braking path and the turn ahead
+:mod:`~fusion_planner.core.local_planning.progress`         time without progress toward the goal
+:mod:`~fusion_planner.core.local_planning.yielding`         the side kept for people on the route
 :mod:`~fusion_planner.core.local_planning.dwa`              the ``'dwa'`` baseline
 :mod:`~fusion_planner.core.local_planning.local_geometry`   small geometry helpers
 =========================================  ====================================================
@@ -64,9 +73,11 @@ holds every number):
    ``|d omega| <= max_alpha * control_period``. Speed limits win over
    acceleration limits if the measured velocity is already out of range.
 
-Arrival is only reported within ``goal_tolerance`` of the goal; an escape
-still open after ``escape_time_limit`` ends in status ``'failed'`` with a
-reason, which stays until ``reset`` or ``set_path``.
+Arrival is only reported within ``goal_tolerance`` of the goal; a field
+controller that makes no progress toward the goal for ``escape_time_limit``
+ends in status ``'failed'`` with a reason, and fusion, once a replan has
+proved the goal unreachable, brakes and reports ``'no_path'``; either stays
+until ``reset`` or ``set_path``.
 
 Examples
 --------

@@ -94,9 +94,17 @@ def points_off_circles(points, centres, radii, margin=TRACKED_POINT_MARGIN):
     """
     if len(centres) == 0 or len(points) == 0:
         return points
+    return points[off_circles(points, centres, radii, margin)]
+
+
+def off_circles(points, centres, radii, margin=TRACKED_POINT_MARGIN):
+    """Mask ``(M,)`` of the points farther than ``margin`` [m] from every circle's boundary.
+
+    Same arguments as :func:`points_off_circles`.
+    """
     dx = points[:, 0:1] - centres[:, 0]                     # (M, K)
     dy = points[:, 1:2] - centres[:, 1]
-    return points[np.all(dx * dx + dy * dy > (radii + margin)**2, axis=1)]
+    return np.all(dx * dx + dy * dy > (radii + margin)**2, axis=1)
 
 
 def circle_points(q, centres, radii, keep_off=None):

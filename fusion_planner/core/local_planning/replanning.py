@@ -16,10 +16,12 @@ Examples
 """
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
-from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.errors import (
+    GoalOccupied, InvalidInput, NoValidPathCouldBeFound, StartOccupied)
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.local_planning.local_geometry import thin_points
 from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
@@ -84,20 +86,31 @@ class GridReplanner:
     config : PlannerConfig, optional
         Planner configuration (its ``robot_radius`` inflates the new cells
         too).
+    robot_radius : float, optional
+        The robot's own radius [m], when the configuration inflates by more
+        (a comfort margin): a plan that fails with the margin is tried again
+        with the radius alone before the goal counts as unreachable, so a
+        gap the robot fits through is not taken for a wall.
 
     Raises
     ------
     InvalidInput
-        If ``grid`` is not a GridMap or ``config`` not a PlannerConfig.
+        If ``grid`` is not a GridMap, ``config`` not a PlannerConfig, or
+        ``robot_radius`` not a finite number >= 0.
     """
 
-    def __init__(self, grid, config=None):
+    def __init__(self, grid, config=None, robot_radius=None):
         if not isinstance(grid, GridMap):
             raise InvalidInput('GridReplanner needs a GridMap')
         if config is not None and not isinstance(config, PlannerConfig):
             raise InvalidInput('GridReplanner config must be a PlannerConfig')
+        if robot_radius is not None and not (
+                isinstance(robot_radius, (int, float)) and math.isfinite(robot_radius)
+                and robot_radius >= 0):
+            raise InvalidInput(f'robot_radius must be a number of metres >= 0, got {robot_radius!r}')
         self.grid = grid
         self.config = config or PlannerConfig()
+        self.robot_radius = robot_radius
 
     def __call__(self, start, goal, obstacle_points):
         """Plan from ``start`` to ``goal`` [m] around the map and ``obstacle_points`` (M, 2) [m].
@@ -117,7 +130,11 @@ class GridReplanner:
         Raises
         ------
         PlanningError
-            Any planner outcome (no path, start or goal blocked ...).
+            Any planner outcome (no path, start or goal blocked ...); no
+            path and a blocked goal only when they hold for ``robot_radius``
+            too, and not when the start itself lies within that radius of an
+            obstacle (then :class:`StartOccupied`: a robot wedged in a gap
+            proves nothing about the goal).
         """
         grid = self.grid
         start = np.asarray(start, dtype=float)
@@ -134,5 +151,17 @@ class GridReplanner:
             cells = cells[grid.contains(cells)]
             occupied[cells[:, 0], cells[:, 1]] = True
         known = GridMap(occupied, grid.resolution, grid.origin)
-        plan = GlobalPlanner(known, self.config).plan(start, goal)
+        try:
+            plan = GlobalPlanner(known, self.config).plan(start, goal)
+        except (NoValidPathCouldBeFound, GoalOccupied):
+            radius = self.config.robot_radius if self.robot_radius is None \
+                else min(self.robot_radius, self.config.robot_radius)
+            if known.clearance_at(start[None, :])[0] <= radius:
+                # wedged: the search cannot leave the start, which proves nothing
+                raise StartOccupied(
+                    f'the robot at ({start[0]:.2f}, {start[1]:.2f}) stands within {radius:g} m '
+                    'of an obstacle: no plan can leave from here') from None
+            if radius >= self.config.robot_radius:
+                raise
+            plan = GlobalPlanner(known, replace(self.config, robot_radius=radius)).plan(start, goal)
         return plan.path, plan.key_nodes

@@ -312,7 +312,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     # Fusion may replan on the known map plus the obstacles it has seen when
     # its escape toward the next key node fails (see follow.GridReplanner).
     controller = follow.make_controller(
-        controller_name, params, replan=follow.GridReplanner(scenario.grid, scenario.planner))
+        controller_name, params,
+        replan=follow.GridReplanner(scenario.grid, scenario.planner, robot_radius=scenario.robot.radius))
     seed = scenario.seed if seed is None else int(seed)
     start = np.asarray(scenario.start, float)
     goal = np.asarray(scenario.goal, float)

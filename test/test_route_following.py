@@ -1,0 +1,188 @@
+"""The pieces of route following: the route, the speed policy, progress, passing people, centring."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fusion_planner.core.errors import (
+    InvalidInput, NoValidPathCouldBeFound, StartOccupied)
+from fusion_planner.core.global_planning.centring import centre_path
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.grid import GridMap
+from fusion_planner.core.local_planning.controller_base import FollowerParams
+from fusion_planner.core.local_planning.progress import ProgressMonitor
+from fusion_planner.core.local_planning.replanning import GridReplanner
+from fusion_planner.core.local_planning.route import Route
+from fusion_planner.core.local_planning.speed_policy import (
+    braking_path_gap, turn_cap, turn_speed)
+from fusion_planner.core.local_planning.yielding import passing_bounds
+
+PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
+NO_CIRCLES = np.zeros((0, 3))
+
+
+def wall(a, b, spacing=0.02):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    count = max(2, int(np.linalg.norm(b - a) / spacing) + 1)
+    return a + np.linspace(0.0, 1.0, count)[:, None] * (b - a)
+
+
+# -- route ----------------------------------------------------------------------------------
+
+def test_the_station_only_moves_forward_and_the_carrot_follows_the_path():
+    route = Route(np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]]))
+    assert route.length == pytest.approx(7.0)
+    assert route.project(np.array([2.0, 0.3])) == pytest.approx(2.0)
+    assert route.project(np.array([0.5, 0.0])) == pytest.approx(2.0)        # never back
+    assert route.point_at(5.0) == pytest.approx([4.0, 1.0])
+    assert route.remaining == pytest.approx(5.0)
+    np.testing.assert_allclose(route.tangent_at(5.0), [0.0, 1.0], atol=1e-12)
+
+
+def test_offsets_are_signed_by_side_and_turns_are_found_at_the_corner():
+    route = Route(np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]]))
+    points = np.array([[1.0, 0.4], [2.0, -0.3]])
+    distance, index = route.nearest(points, 0.0, 3.0)
+    np.testing.assert_allclose(route.signed_offsets(points, distance, index), [0.4, -0.3])
+    distances, turns = route.sharpest_turns(3.0, 4.5)
+    assert turns.max() == pytest.approx(math.pi / 2)
+    assert distances[np.argmax(turns)] < 1.0
+    assert route.along_to_first(np.array([[3.0, 0.1]]), 0.0, 7.0, 0.2) == pytest.approx(2.8,
+                                                                                        abs=0.06)
+    assert route.along_to_first(np.array([[3.0, 1.0]]), 0.0, 3.5, 0.2) == math.inf
+
+
+# -- speed policy -----------------------------------------------------------------------------
+
+def test_turns_cap_the_speed_and_a_straight_route_does_not():
+    assert turn_cap(Route(np.array([[0.0, 0.0], [20.0, 0.0]])), 0.0, PARAMS) == PARAMS.max_speed
+    corner = Route(np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 5.0]]))
+    far, near = turn_cap(corner, 1.2, PARAMS), turn_cap(corner, 1.8, PARAMS)
+    assert near < far <= PARAMS.max_speed
+    assert turn_speed(np.array([0.1, 1.0]), PARAMS)[1] < turn_speed(np.array([0.1, 1.0]),
+                                                                     PARAMS)[0]
+
+
+def test_side_walls_are_not_in_the_braking_path_a_blocking_point_is():
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    walls = np.vstack([wall((0.0, 0.4), (10.0, 0.4)), wall((0.0, -0.4), (10.0, -0.4))])
+    pose = np.array([1.0, 0.0, 0.0])
+    free = braking_path_gap(pose, route, 1.0, walls, np.zeros((0, 2)), NO_CIRCLES, PARAMS)
+    assert free == math.inf
+    blocker = np.array([[2.0, 0.0]])
+    gap = braking_path_gap(pose, route, 1.0, np.vstack([walls, blocker]), blocker, NO_CIRCLES,
+                           PARAMS)
+    assert 0.5 < gap < 1.0
+
+
+def test_driving_on_past_a_post_at_the_present_clearance_is_allowed_closing_in_is_not():
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    post = np.array([[1.3, 0.21]])                      # 1 cm from the robot's side, ahead
+    parallel = braking_path_gap(np.array([1.3, 0.0, 0.0]), route, 1.3, post, np.zeros((0, 2)),
+                                NO_CIRCLES, PARAMS)
+    toward = braking_path_gap(np.array([1.0, 0.0, 0.3]), route, 1.0, post, np.zeros((0, 2)),
+                              NO_CIRCLES, PARAMS)
+    assert parallel == math.inf
+    assert toward < 0.5
+
+
+# -- progress --------------------------------------------------------------------------------
+
+def test_time_without_progress_counts_from_the_last_progress_and_survives_a_new_plan():
+    monitor = ProgressMonitor(min_progress=0.15)
+    assert monitor.update(0.0, 10.0) == 0.0
+    assert monitor.update(10.0, 9.9) == 10.0            # 0.1 m is not progress
+    assert monitor.update(11.0, 9.8) == 0.0
+    monitor.rebase(15.0)                                # a longer new plan
+    assert monitor.update(20.0, 15.0) == 9.0            # the clock was kept
+    assert monitor.update(21.0, 14.8) == 0.0
+    assert monitor.update(5.0, 14.8) == 0.0             # the clock went back: start over
+
+
+# -- passing people --------------------------------------------------------------------------
+
+def test_a_person_walking_along_the_route_is_passed_on_the_roomier_side_and_kept_there():
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    person = np.array([[3.0, 0.1, -0.35, 0.0, 0.3]])
+    left, right, side = passing_bounds(route, person, 0.9, 0.9, PARAMS, 0)
+    assert side == -1 and right == math.inf and left == pytest.approx(0.1 - 0.6)
+    _, right, side = passing_bounds(route, person, 0.9, 0.9, PARAMS, 1)    # side kept
+    assert side == 1 and right == pytest.approx(-(0.1 + 0.6))
+
+
+def test_no_bounds_for_a_crossing_person_a_person_far_ahead_or_no_room():
+    route = Route(np.array([[0.0, 0.0], [20.0, 0.0]]))
+    crossing = np.array([[3.0, 0.0, 0.0, 0.4, 0.3]])
+    far = np.array([[12.0, 0.0, -0.35, 0.0, 0.3]])
+    walking = np.array([[3.0, 0.0, -0.35, 0.0, 0.3]])
+    assert passing_bounds(route, crossing, 0.9, 0.9, PARAMS, 0) == (math.inf, math.inf, 0)
+    assert passing_bounds(route, far, 0.9, 0.9, PARAMS, 0) == (math.inf, math.inf, 0)
+    assert passing_bounds(route, walking, 0.5, 0.5, PARAMS, 0) == (math.inf, math.inf, 0)
+
+
+# -- centring the plan --------------------------------------------------------------------
+
+def corridor(width_cells, length_cells=80, resolution=0.05):
+    occupied = np.ones((width_cells + 4, length_cells), bool)
+    occupied[2:-2, :] = False
+    return GridMap(occupied, resolution)
+
+
+def test_a_path_along_a_wall_moves_to_the_safety_distance_and_no_further():
+    grid = corridor(40)                                 # 2 m wide, walls at y = 0.1 and 2.1
+    path = np.column_stack([np.linspace(0.2, 3.8, 73), np.full(73, 0.35)])
+    centred = centre_path(grid, path, robot_radius=0.2, safety_distance=0.3)
+    np.testing.assert_allclose(centred[[0, -1]], path[[0, -1]])
+    middle = centred[10:-10]
+    assert np.all(grid.clearance_at(middle) >= 0.5 - 0.05)
+    assert np.all(middle[:, 1] < 1.0)                   # not pushed to the corridor's middle
+
+
+def test_a_passage_narrower_than_the_safety_distance_is_crossed_through_its_middle():
+    grid = corridor(14)                                 # 0.7 m wide, middle at y = 0.45
+    path = np.column_stack([np.linspace(0.2, 3.8, 73), np.full(73, 0.33)])
+    before = grid.clearance_at(path)
+    centred = centre_path(grid, path, robot_radius=0.2, safety_distance=0.3)
+    assert np.all(grid.clearance_at(centred) >= before)
+    assert np.all(np.abs(centred[10:-10, 1] - 0.45) < 0.04)
+
+
+def test_centring_is_off_for_a_point_robot_and_can_be_turned_off():
+    grid = corridor(14)
+    path = np.column_stack([np.linspace(0.2, 3.8, 73), np.full(73, 0.33)])
+    np.testing.assert_array_equal(centre_path(grid, path, 0.0, 0.0), path)
+    config = PlannerConfig(robot_radius=0.2, safety_distance=0.3)
+    plain = GlobalPlanner(grid, PlannerConfig(robot_radius=0.2, safety_distance=0.3,
+                                              centre=False)).plan((0.3, 0.33), (3.7, 0.6))
+    centred = GlobalPlanner(grid, config).plan((0.3, 0.33), (3.7, 0.6))
+    assert centred.metrics.min_clearance_m >= plain.metrics.min_clearance_m
+    assert not np.array_equal(centred.path, plain.path)
+
+
+# -- replanning that proves unreachability ----------------------------------------------------
+
+def test_a_replan_with_a_comfort_margin_is_retried_with_the_radius_alone():
+    grid = corridor(24)                                 # 1.2 m wide, middle at y = 0.7 ...
+    occupied = grid.occupied.copy()
+    occupied[2:8, 38:42] = occupied[-8:-2, 38:42] = True   # ... but a 0.6 m slit halfway
+    grid = GridMap(occupied, grid.resolution)
+    config = PlannerConfig(robot_radius=0.35)
+    with pytest.raises(NoValidPathCouldBeFound):
+        GridReplanner(grid, config)((0.5, 0.7), (3.5, 0.7), np.zeros((0, 2)))
+    path, _ = GridReplanner(grid, config, robot_radius=0.2)((0.5, 0.7), (3.5, 0.7),
+                                                             np.zeros((0, 2)))
+    assert np.allclose(path[-1], [3.5, 0.7], atol=0.05)
+
+
+def test_a_wedged_robot_proves_nothing_about_the_goal():
+    grid = corridor(8)                                  # 0.4 m: the robot only just fits
+    with pytest.raises(StartOccupied):
+        GridReplanner(grid, PlannerConfig(robot_radius=0.2))((0.5, 0.3), (3.5, 0.3),
+                                                             np.zeros((0, 2)))
+
+
+@pytest.mark.parametrize('radius', [-0.1, float('nan'), 'wide'])
+def test_a_replanner_refuses_a_bad_robot_radius(radius):
+    with pytest.raises(InvalidInput):
+        GridReplanner(corridor(12), PlannerConfig(), robot_radius=radius)
