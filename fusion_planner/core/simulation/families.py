@@ -478,7 +478,9 @@ def _unreachable(rng, seed):
         openings.append((o0, o0 + size))
         occ[o0:o0 + size, c0:c0 + thickness] = False
         depth = min(float(rng.uniform(*BLOCKER_DEPTH_M)), thickness * res)
-        x0 = float(rng.uniform(c0 * res, (c0 + thickness) * res - depth))
+        # An offset into the wall, not two absolute bounds: when the box fills the
+        # wall's thickness, rounding would put the upper bound below the lower.
+        x0 = c0 * res + float(rng.uniform(0.0, thickness * res - depth))
         blockers.append(Rectangle((x0, o0 * res - BLOCKER_OVERLAP_M),
                                   (x0 + depth, (o0 + size) * res + BLOCKER_OVERLAP_M)))
     grid = GridMap(occ, res)
