@@ -19,7 +19,8 @@ Notes
   time is the node's log line "prepared for planning in ... s" and is
   reported as the wait for the map.
 - The node runs with its defaults but ``robot_radius`` (0.2 m), the
-  ``algorithm`` asked for, and ``mark_obstacles`` off (no scans here).
+  ``algorithm`` asked for, ``mark_obstacles`` off (no scans here) and
+  ``pose_topic_type: odometry`` (the start pose is map-frame odometry).
 - Needs ROS 2 (the ``ros`` extra or a sourced install) and, for the ratio,
   pyastar2d (the ``bench`` extra); both are checked before any work.
 """
@@ -180,7 +181,8 @@ class NodeProcess:
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'fusion_planner.ros.global_planner', '--ros-args',
              '-p', f'robot_radius:={ROBOT_RADIUS}', '-p', f'algorithm:={algorithm}',
-             '-p', 'mark_obstacles:=false', '--log-level', 'warn'],
+             '-p', 'mark_obstacles:=false', '-p', 'pose_topic_type:=odometry',
+             '--log-level', 'warn'],
             env=env, stdout=subprocess.DEVNULL, stderr=self._log, text=True)
 
     def __enter__(self):

@@ -200,7 +200,7 @@ FOLLOWER_PARAMETERS = {
                   float_range(0.05, 20.0)),
     'stuck_window': ('window of the local-minimum progress test [s]', float_range(0.1, 120.0)),
     'stuck_progress': ('net progress needed within stuck_window [m]', float_range(0.001, 10.0)),
-    'escape_time_limit': ('longest local-minimum escape before failing [s]',
+    'escape_time_limit': ('longest time without progress toward the goal before failing [s]',
                           float_range(0.1, 3600.0)),
     'robot_radius': ('robot radius; obstacle distances are from its boundary [m]',
                      float_range(0.0, 10.0)),
