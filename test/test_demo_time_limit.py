@@ -49,13 +49,13 @@ def test_what_comes_after_the_limit_is_not_part_of_the_run(recorder):
     for t in (1.0, 2.0, 3.0):
         rec.on_clock(clock(t))
         rec.on_ground_truth(odom(t, x0 + t, y0))
-        rec.on_diagnostics(status(t, 'demo/simulator', collisions=0, distance_travelled_m=t))
+        rec.on_diagnostics(status(t, '/simulator', collisions=0, distance_travelled_m=t))
     rec.on_clock(clock(7.7))                       # the simulator ran on meanwhile
     rec.on_ground_truth(odom(7.7, x0 + 7.7, y0))
-    rec.on_diagnostics(status(7.7, 'demo/simulator', collisions=2, distance_travelled_m=7.7))
+    rec.on_diagnostics(status(7.7, '/simulator', collisions=2, distance_travelled_m=7.7))
     gx, gy = scenario.goal
     rec.on_ground_truth(odom(7.8, gx, gy))
-    rec.on_diagnostics(status(7.8, 'demo/local_planner', status='arrived'))
+    rec.on_diagnostics(status(7.8, '/local_planner', status='arrived'))
     assert rec.snapshot()[0] == 3.0
     result = rec.result(False, 'time_limit')
     assert result.time_s == 3.0
@@ -69,12 +69,12 @@ def test_an_arrival_freezes_the_reported_time_and_end_freezes_the_run(recorder):
     gx, gy = scenario.goal
     rec.on_clock(clock(2.0))
     rec.on_ground_truth(odom(2.0, gx, gy))
-    rec.on_diagnostics(status(2.0, 'demo/local_planner', status='arrived'))
+    rec.on_diagnostics(status(2.0, '/local_planner', status='arrived'))
     rec.on_clock(clock(2.5))
     assert rec.snapshot()[0] == 2.0 and rec.result(True, None).time_s == 2.0
     rec.end()
     rec.on_clock(clock(2.9))
-    rec.on_diagnostics(status(2.9, 'demo/simulator', collisions=1))
+    rec.on_diagnostics(status(2.9, '/simulator', collisions=1))
     assert rec.sim_time == 2.5 and rec.collisions() == 0
 
 

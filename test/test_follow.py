@@ -554,6 +554,14 @@ def test_bad_paths_are_refused():
         controller.set_path(np.zeros((3, 2)), np.array([[float('nan'), 0.0]]))
 
 
+@pytest.mark.parametrize('name', ['fusion', 'apf', 'dwa', 'astar-track'])
+def test_a_path_of_absurd_length_is_refused_before_it_is_resampled(name):
+    controller = make_controller(name, FollowerParams())
+    far = np.array([[0.0, 0.0], [2.8e8, -2.5e6]])   # cm-spaced, this would be 40 GB
+    with pytest.raises(InvalidInput, match='longer than'):
+        controller.set_path(far, far)
+
+
 def test_non_finite_scan_points_are_ignored():
     p = params()
     controller = make_controller('fusion', p)

@@ -36,6 +36,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from fusion_planner.core import raster
+
 #: Path points centred together (one clearance window per piece).
 PIECE_POINTS = 400
 
@@ -76,10 +78,32 @@ def centre_path(grid, path, robot_radius, safety_distance):
     target = robot_radius + safety_distance
     if target <= 0.0:
         return path
+    original = path.copy()
     for first in range(1, len(path) - 1, PIECE_POINTS):
         last = min(first + PIECE_POINTS, len(path) - 1)
         _centre_piece(grid, path, first, last, robot_radius, target)
-    return path
+    return _without_new_contacts(grid, original, path, robot_radius)
+
+
+def _without_new_contacts(grid, original, centred, robot_radius):
+    """Put back the moved ends of every segment that now touches a cell the robot cannot be in.
+
+    The band checks points only; two points in free cells can still span a
+    segment across an obstacle's corner. Putting a point back can make its
+    other segment bad, so this repeats; it ends at the latest with the
+    original segments.
+    """
+    moved = np.any(centred != original, axis=1)
+    while True:
+        clear = raster.segments_clearance(grid, centred[:-1], centred[1:])
+        bad = np.flatnonzero(clear <= robot_radius)
+        ends = np.zeros(len(centred), bool)
+        ends[bad] = ends[bad + 1] = True
+        ends &= moved
+        if not ends.any():
+            return centred
+        centred[ends] = original[ends]
+        moved &= ~ends
 
 
 def _centre_piece(grid, path, first, last, robot_radius, target):

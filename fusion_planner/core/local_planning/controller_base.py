@@ -28,6 +28,10 @@ from fusion_planner.core.local_planning.local_geometry import wrap_angle
 
 LOGGER = logging.getLogger(__name__)
 
+#: Longest global path [m] a controller takes (its route is resampled every
+#: few centimetres; no map a robot plans on is a hundred kilometres across).
+MAX_PATH_LENGTH_M = 100_000.0
+
 #: Values of :attr:`Command.status`.
 STATUSES = ('moving', 'arrived', 'stuck_escaping', 'failed', 'no_path')
 
@@ -372,9 +376,15 @@ class ControllerBase:
         Raises
         ------
         InvalidInput
-            If an array is empty, not (N, 2) or not finite.
+            If an array is empty, not (N, 2) or not finite, or the path is
+            longer than :data:`MAX_PATH_LENGTH_M`.
         """
-        self._path = as_path(path, 'path')
+        path = as_path(path, 'path')
+        length = float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
+        if not length <= MAX_PATH_LENGTH_M:   # the controllers resample it every few cm
+            raise InvalidInput(f'a path of {length:.3g} m is longer than the '
+                               f'{MAX_PATH_LENGTH_M:.0f} m a local controller follows')
+        self._path = path
         self._key_nodes = as_path(key_nodes, 'key_nodes')
         self._clear_state()
 
