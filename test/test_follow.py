@@ -562,6 +562,14 @@ def test_a_path_of_absurd_length_is_refused_before_it_is_resampled(name):
         controller.set_path(far, far)
 
 
+def test_a_robot_far_off_its_plan_is_refused_not_resampled():
+    controller = make_controller('fusion', FollowerParams())
+    path = np.array([[0.0, 0.0], [3.0, 0.0]])
+    controller.set_path(path, path)
+    with pytest.raises(InvalidInput, match='longer than'):
+        controller._route_from(np.array([7.2e1, 2.1e8]), 1)   # the re-join of an escape
+
+
 def test_non_finite_scan_points_are_ignored():
     p = params()
     controller = make_controller('fusion', p)

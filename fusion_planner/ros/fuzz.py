@@ -348,8 +348,8 @@ def occupancy_grids(draw, frame=MAP_FRAME, max_cells=MAX_MAP_CELLS, bad_only=Fal
 
 
 #: Defects of a Path: a refused point (NaN, infinite, too far), a wrong frame of the
-#: path or of one pose.
-PATH_DEFECTS = ('point', 'frame', 'pose frame')
+#: path or of one pose, longer than conv.MAX_PATH_LENGTH_M (also whenever its points are).
+PATH_DEFECTS = ('point', 'frame', 'pose frame', 'too long')
 _PATH_KINDS = st.sampled_from(('line', 'scattered', 'far', 'wild', 'repeated'))
 
 
@@ -376,8 +376,11 @@ def paths(draw, frame=MAP_FRAME, bad_only=False):
     defects = draw(_defect_sets(PATH_DEFECTS, bad_only))
     msg = Path()
     msg.header = draw(_headers(frame))
-    count = draw(st.integers(1 if {'point', 'pose frame'} & set(defects) else 0, 40))
+    count = draw(st.integers(2 if 'too long' in defects else
+                             1 if {'point', 'pose frame'} & set(defects) else 0, 40))
     points = _path_points(draw, count)
+    if 'too long' in defects:
+        points[-1] = points[0] + (2.0 * conv.MAX_PATH_LENGTH_M, 0.0)
     if 'point' in defects:
         points[draw(st.integers(0, count - 1)), draw(st.integers(0, 1))] = draw(_BAD_COORDINATES)
     pose_frame = draw(st.sampled_from((frame, '')))
@@ -394,6 +397,9 @@ def paths(draw, frame=MAP_FRAME, bad_only=False):
     msg.poses = poses
     if 'frame' in defects:
         msg.header.frame_id = draw(_wrong_frames(frame))
+    if 'point' not in defects and len(points) > 1 and (
+            np.sum(np.hypot(*np.diff(points, axis=0).T)) > conv.MAX_PATH_LENGTH_M):
+        defects = sorted({*defects, 'too long'})
     return Fuzzed(msg, defects)
 
 

@@ -432,6 +432,10 @@ class ControllerBase:
             return self._stop(obs, 'no_path', 'no global plan has been set')
         if self._failure is not None:
             return self._stop(obs, 'failed', self._failure)
+        lower, upper = self._path.min(axis=0), self._path.max(axis=0)
+        off = math.hypot(*np.maximum(np.maximum(lower - obs.pose[:2], obs.pose[:2] - upper), 0.0))
+        if off > MAX_PATH_LENGTH_M:   # no route back can be followed (or resampled)
+            return self._fail(obs, f'the robot is {off:.3g} m away from its plan')
         return None
 
     def _stop(self, obs, status, reason='', sub_goal=None):

@@ -24,6 +24,8 @@ import math
 
 import numpy as np
 
+from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.local_planning.controller_base import MAX_PATH_LENGTH_M
 from fusion_planner.core.local_planning.local_geometry import resample, wrap_angle
 
 #: Spacing [m] of the route's points (its projection error is a few tenths of
@@ -56,10 +58,21 @@ class Route:
         Arc length [m] of each point from the first.
     station : float
         Arc length [m] of the robot's last projection.
+
+    Raises
+    ------
+    InvalidInput
+        If the polyline is longer than
+        :data:`~fusion_planner.core.local_planning.controller_base.MAX_PATH_LENGTH_M`.
     """
 
     def __init__(self, polyline):
-        self.points = resample(np.asarray(polyline, dtype=float), ROUTE_SPACING)
+        polyline = np.asarray(polyline, dtype=float)
+        length = float(np.sum(np.hypot(*np.diff(polyline, axis=0).T))) if len(polyline) > 1 else 0.0
+        if not length <= MAX_PATH_LENGTH_M:   # e.g. a robot pose far off the map
+            raise InvalidInput(f'a route of {length:.3g} m is longer than the '
+                               f'{MAX_PATH_LENGTH_M:.0f} m a local controller follows')
+        self.points = resample(polyline, ROUTE_SPACING)
         steps = np.hypot(*np.diff(self.points, axis=0).T)
         self.arc = np.concatenate([[0.0], np.cumsum(steps)])
         headings = np.arctan2(*np.diff(self.points, axis=0).T[::-1]) if len(steps) else np.zeros(0)
