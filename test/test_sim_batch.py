@@ -2,8 +2,8 @@
 
 The controllers get the default scan perception (the scan tracker's moving tracks).
 
-A modest batch (the 200-scenario batch of docs/ALGORITHM.md is run by hand
-with ``fusion-planner sim --random 200 --seed 0 --json``), plus the generated
+A modest batch (the family tables of docs/ALGORITHM.md are made by hand with
+``fusion-planner bench families``), plus the generated
 scenarios on which a moving obstacle used to walk into the slowed or
 wall-pinned robot before the evasion layer (fusion_planner.core.local_planning.evasion,
 issue 3). Kept in its own file: it takes about a minute on one core.
@@ -40,7 +40,7 @@ def test_fusion_batch_reaches_98_percent(fusion_batch):
 @pytest.mark.xfail(strict=True, reason=(
     'known defect: in random-2651666590 a slow walker is not yet a moving track, its '
     'scan points count as static points beside the route, which do not repel, and the '
-    'robot turns into it (docs/BENCHMARKS.md, "Scan perception: known contacts")'))
+    'robot turns into it (docs/ALGORITHM.md, "Where fusion still falls short")'))
 def test_fusion_batch_has_no_collisions(fusion_batch):
     assert fusion_batch.controllers['fusion'].collisions == 0, [
         e for e in fusion_batch.episodes if e['collisions']]
