@@ -562,6 +562,18 @@ def test_a_path_of_absurd_length_is_refused_before_it_is_resampled(name):
         controller.set_path(far, far)
 
 
+@pytest.mark.parametrize('name', ['fusion', 'apf', 'dwa', 'astar-track'])
+def test_a_robot_farther_from_its_plan_than_any_route_fails_and_stops(name):
+    controller = make_controller(name, FollowerParams())
+    path = np.array([[0.0, 0.0], [3.0, 0.0]])
+    controller.set_path(path, path)
+    obs = Observation(np.array([72.0, 2.1e8, 0.0]), np.zeros(2), np.zeros((0, 2)),
+                      np.zeros((0, 5)), 0.0)
+    command = controller.compute(obs)
+    assert command.status == 'failed' and 'away from its plan' in command.reason
+    assert command.v == 0.0 and command.omega == 0.0
+
+
 def test_a_robot_far_off_its_plan_is_refused_not_resampled():
     controller = make_controller('fusion', FollowerParams())
     path = np.array([[0.0, 0.0], [3.0, 0.0]])

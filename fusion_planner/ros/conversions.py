@@ -44,7 +44,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 from fusion_planner.core import map_files, raster
 from fusion_planner.core.errors import InvalidInput, MapError
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
-from fusion_planner.core.local_planning.controller_base import MAX_PATH_LENGTH_M
+from fusion_planner.core.local_planning.controller_base import check_followable
 
 #: A quaternion whose norm differs from 1 by at most this [1] is normalised;
 #: a larger difference means a corrupt message and is refused.
@@ -639,12 +639,7 @@ def plan_from_msg(msg, frame_id, what='plan'):
     if len(msg.poses) == 0:
         check_frame(msg.header.frame_id, frame_id, what)
         return None
-    points = path_from_msg(msg, frame_id, what)
-    length = float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
-    if length > MAX_PATH_LENGTH_M:
-        raise InvalidInput(f'{what}: a path of {length:.3g} m is longer than the '
-                           f'{MAX_PATH_LENGTH_M:.0f} m a robot follows')
-    return points
+    return check_followable(path_from_msg(msg, frame_id, what), what)
 
 
 # -- scans --------------------------------------------------------------------

@@ -60,6 +60,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from fusion_planner.core import raster
 from fusion_planner.core.grid import GridMap
+from fusion_planner.core.local_planning.controller_base import MAX_PATH_LENGTH_M
 from fusion_planner.core.simulation.world import integrate_unicycle
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import DEFAULT_LOG_PERIOD_S, RateLimitedLogger
@@ -348,7 +349,7 @@ def occupancy_grids(draw, frame=MAP_FRAME, max_cells=MAX_MAP_CELLS, bad_only=Fal
 
 
 #: Defects of a Path: a refused point (NaN, infinite, too far), a wrong frame of the
-#: path or of one pose, longer than conv.MAX_PATH_LENGTH_M (also whenever its points are).
+#: path or of one pose, longer than MAX_PATH_LENGTH_M (also whenever its points are).
 PATH_DEFECTS = ('point', 'frame', 'pose frame', 'too long')
 _PATH_KINDS = st.sampled_from(('line', 'scattered', 'far', 'wild', 'repeated'))
 
@@ -380,7 +381,7 @@ def paths(draw, frame=MAP_FRAME, bad_only=False):
                              1 if {'point', 'pose frame'} & set(defects) else 0, 40))
     points = _path_points(draw, count)
     if 'too long' in defects:
-        points[-1] = points[0] + (2.0 * conv.MAX_PATH_LENGTH_M, 0.0)
+        points[-1] = points[0] + (2.0 * MAX_PATH_LENGTH_M, 0.0)
     if 'point' in defects:
         points[draw(st.integers(0, count - 1)), draw(st.integers(0, 1))] = draw(_BAD_COORDINATES)
     pose_frame = draw(st.sampled_from((frame, '')))
@@ -398,7 +399,7 @@ def paths(draw, frame=MAP_FRAME, bad_only=False):
     if 'frame' in defects:
         msg.header.frame_id = draw(_wrong_frames(frame))
     if 'point' not in defects and len(points) > 1 and (
-            np.sum(np.hypot(*np.diff(points, axis=0).T)) > conv.MAX_PATH_LENGTH_M):
+            np.sum(np.hypot(*np.diff(points, axis=0).T)) > MAX_PATH_LENGTH_M):
         defects = sorted({*defects, 'too long'})
     return Fuzzed(msg, defects)
 

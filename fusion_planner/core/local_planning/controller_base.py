@@ -270,6 +270,22 @@ class Controller(Protocol):
 
 # -- shared command shaping ---------------------------------------------------------
 
+def check_followable(points, what):
+    """``points`` (N, 2) [m], finite, if no longer than :data:`MAX_PATH_LENGTH_M`.
+
+    Raises
+    ------
+    InvalidInput
+        Naming ``what``, if the polyline is longer (it is resampled every few
+        centimetres by the controllers).
+    """
+    length = float(np.sum(np.hypot(*np.diff(points, axis=0).T))) if len(points) > 1 else 0.0
+    if not length <= MAX_PATH_LENGTH_M:
+        raise InvalidInput(f'{what}: a path of {length:.3g} m is longer than the '
+                           f'{MAX_PATH_LENGTH_M:.0f} m a robot follows')
+    return points
+
+
 def as_path(value, name):
     """``value`` as a non-empty, finite ``(N, 2)`` float64 array [m].
 
@@ -379,12 +395,8 @@ class ControllerBase:
             If an array is empty, not (N, 2) or not finite, or the path is
             longer than :data:`MAX_PATH_LENGTH_M`.
         """
-        path = as_path(path, 'path')
-        length = float(np.sum(np.hypot(*np.diff(path, axis=0).T))) if len(path) > 1 else 0.0
-        if not length <= MAX_PATH_LENGTH_M:   # the controllers resample it every few cm
-            raise InvalidInput(f'a path of {length:.3g} m is longer than the '
-                               f'{MAX_PATH_LENGTH_M:.0f} m a local controller follows')
-        self._path = path
+        self._path = check_followable(as_path(path, 'path'), 'path')
+        self._path_box = (self._path.min(axis=0), self._path.max(axis=0))
         self._key_nodes = as_path(key_nodes, 'key_nodes')
         self._clear_state()
 
@@ -432,7 +444,7 @@ class ControllerBase:
             return self._stop(obs, 'no_path', 'no global plan has been set')
         if self._failure is not None:
             return self._stop(obs, 'failed', self._failure)
-        lower, upper = self._path.min(axis=0), self._path.max(axis=0)
+        lower, upper = self._path_box
         off = math.hypot(*np.maximum(np.maximum(lower - obs.pose[:2], obs.pose[:2] - upper), 0.0))
         if off > MAX_PATH_LENGTH_M:   # no route back can be followed (or resampled)
             return self._fail(obs, f'the robot is {off:.3g} m away from its plan')

@@ -24,8 +24,7 @@ import math
 
 import numpy as np
 
-from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.local_planning.controller_base import MAX_PATH_LENGTH_M
+from fusion_planner.core.local_planning.controller_base import check_followable
 from fusion_planner.core.local_planning.local_geometry import resample, wrap_angle
 
 #: Spacing [m] of the route's points (its projection error is a few tenths of
@@ -67,11 +66,7 @@ class Route:
     """
 
     def __init__(self, polyline):
-        polyline = np.asarray(polyline, dtype=float)
-        length = float(np.sum(np.hypot(*np.diff(polyline, axis=0).T))) if len(polyline) > 1 else 0.0
-        if not length <= MAX_PATH_LENGTH_M:   # e.g. a robot pose far off the map
-            raise InvalidInput(f'a route of {length:.3g} m is longer than the '
-                               f'{MAX_PATH_LENGTH_M:.0f} m a local controller follows')
+        polyline = check_followable(np.asarray(polyline, dtype=float), 'route')
         self.points = resample(polyline, ROUTE_SPACING)
         steps = np.hypot(*np.diff(self.points, axis=0).T)
         self.arc = np.concatenate([[0.0], np.cumsum(steps)])
