@@ -39,8 +39,11 @@ setup(
         # MCAP recordings of the demo (mcap-ros2-support reads them back).
         'record': ['mcap', 'mcap-ros2-support'],
         'bench': ['pyastar2d', 'tcod', 'pathfinding', 'python-motion-planning', 'networkx'],
+        # The suite also runs the benchmarks' quick modes against the small
+        # peers (python-motion-planning, with its 3-D viewer stack, stays out).
         'test': ['pytest', 'pytest-timeout', 'hypothesis', 'matplotlib', 'pillow',
-                 'mcap', 'mcap-ros2-support', 'colcon-common-extensions'],
+                 'mcap', 'mcap-ros2-support', 'colcon-common-extensions',
+                 'pyastar2d', 'tcod', 'pathfinding', 'networkx'],
     },
     zip_safe=True,
     entry_points={

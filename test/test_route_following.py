@@ -160,6 +160,16 @@ def test_centring_is_off_for_a_point_robot_and_can_be_turned_off():
     assert not np.array_equal(centred.path, plain.path)
 
 
+def test_a_one_cell_wide_map_leaves_the_path_as_it_is():
+    occupied = np.zeros((1, 5), bool)
+    occupied[0, 4] = True
+    grid = GridMap(occupied, 0.25)
+    result = GlobalPlanner(grid, PlannerConfig(algorithm='dijkstra', neighbourhood=4,
+                                               safety_distance=0.05)).plan((0.125, 0.125),
+                                                                           (0.625, 0.125))
+    np.testing.assert_allclose(result.path[[0, -1]], [[0.125, 0.125], [0.625, 0.125]])
+
+
 # -- replanning that proves unreachability ----------------------------------------------------
 
 def test_a_replan_with_a_comfort_margin_is_retried_with_the_radius_alone():

@@ -116,8 +116,8 @@ def _centre_piece(grid, path, first, last, robot_radius, target):
     col1 = min(int(np.ceil(cells[:, 0].max())) + margin + 1, grid.width)
     row1 = min(int(np.ceil(cells[:, 1].max())) + margin + 1, grid.height)
     occupied = grid.occupied[row0:row1, col0:col1]
-    if not occupied.any():
-        return
+    if not occupied.any() or min(occupied.shape) < 2:
+        return      # nothing to keep away from, or a one-cell-wide map with no room to move
     # clearance of the window's cell centres; beyond the window counts as occupied
     padded = np.pad(~occupied, 1, constant_values=False)
     clearance = ndimage.distance_transform_edt(padded)[1:-1, 1:-1] * res
