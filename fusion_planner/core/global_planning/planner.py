@@ -77,7 +77,8 @@ class PlannerConfig:
         beyond the paper): the path a local controller can drive at speed.
     fewer_turns : bool
         After centring, fold the path's zig-zags into fewer, longer runs
-        where that keeps the clearance and lengthens the path by at most
+        (for a robot of radius plus safety distance above 0) where that
+        keeps the clearance and lengthens the path by at most
         :data:`FOLD_LENGTH_SLACK`
         (:mod:`~fusion_planner.core.global_planning.straighten`; beyond the
         paper): every corner costs a robot time.
@@ -309,12 +310,15 @@ class GlobalPlanner:
         """A refined path with its zig-zags folded, and its vertices as key nodes; or the inputs.
 
         See :mod:`~fusion_planner.core.global_planning.straighten`. The
-        folded path is rounded, sampled (and centred, when configured) like
-        the first one and replaces it only when it is at most
-        :data:`FOLD_LENGTH_SLACK` longer (centring the new runs may add a few
-        centimetres to a fold of equal length).
+        folded path is rounded and sampled like the first one (its runs were
+        chosen for clearance, it is not centred again) and replaces it only
+        when it is at most :data:`FOLD_LENGTH_SLACK` longer. A point robot
+        (``robot_radius + safety_distance`` of 0, the paper's tables) keeps
+        the path as the paper refines it, as with the centring.
         """
         cfg = self.config
+        if cfg.robot_radius + cfg.safety_distance <= 0.0:
+            return path, key_nodes
         vertices = straighten.fewer_turns(self.grid, path, cfg.robot_radius, cfg.safety_distance)
         if vertices is None:
             return path, key_nodes
