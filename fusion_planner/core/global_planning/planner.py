@@ -40,7 +40,7 @@ WHOLE_CLEARANCE_CELLS = 1 << 20
 
 #: A path with its zig-zags folded replaces the refined one when it is at
 #: most this fraction longer (see ``PlannerConfig.fewer_turns``).
-FOLD_LENGTH_SLACK = 0.01
+FOLD_LENGTH_SLACK = 0.03
 
 
 @dataclass(frozen=True)
@@ -324,6 +324,8 @@ class GlobalPlanner:
             return path, key_nodes
         folded = refine.smooth_path(self.grid, vertices, cfg.robot_radius, cfg.safety_distance,
                                     spacing)
+        if cfg.centre:
+            folded = centring.centre_path(self.grid, folded, cfg.robot_radius, cfg.safety_distance)
         if metrics.path_length(folded) > (1.0 + FOLD_LENGTH_SLACK) * metrics.path_length(path):
             return path, key_nodes
         return folded, vertices

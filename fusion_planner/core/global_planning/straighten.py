@@ -10,10 +10,10 @@ first parallel to the third, the second to the fourth) and replaces them by
 two: along the first run's line, then along the fourth's, meeting where the
 two lines cross (the corner is searched within :data:`CORNER_SEARCH_M` of
 that crossing for the most clearance). A replacement is taken only when it
-is no longer than the four runs and keeps, on every cell it touches, the
-smaller of ``robot_radius + safety_distance`` and the smallest clearance the
-path already had; so the path stays as drivable as it was and never
-lengthens. Map frame, metres.
+is at most :data:`LENGTH_SLACK` longer than the four runs and keeps, on
+every cell it touches, the smaller of ``robot_radius + safety_distance`` and
+the smallest clearance the path already had; so the path stays as drivable
+as it was. Map frame, metres.
 
 Examples
 --------
@@ -44,8 +44,10 @@ CORNER_SEARCH_M = 0.1
 #: ... and this spacing [m] around the crossing of the two lines.
 CORNER_STEP_M = 0.01
 
-#: Slack [m] on "no longer than the four runs" (floating point only).
-LENGTH_SLACK_M = 1e-6
+#: A fold may be this fraction longer than the four runs it replaces: the
+#: simplified runs stand for a wavering centred path, and their lines meet
+#: a few centimetres off the middle of the crossing.
+LENGTH_SLACK = 0.01
 
 
 def simplify(path, tolerance=SIMPLIFY_TOLERANCE_M):
@@ -93,8 +95,9 @@ def _better_corner(grid, a, b, runs, needed, robot_radius):
     """The corner of a two-run replacement of ``runs`` (4, 2) from ``a`` to ``b``, or None.
 
     The most-clearance corner near the crossing of the first and the last
-    run's lines among those whose two runs are no longer than ``runs`` and
-    keep ``needed`` [m] of clearance (more than ``robot_radius``).
+    run's lines among those whose two runs are at most :data:`LENGTH_SLACK`
+    longer than ``runs`` and keep ``needed`` [m] of clearance (more than
+    ``robot_radius``).
     """
     crossing = _crossing(a, runs[0], b, runs[3])
     if crossing is None:
@@ -104,7 +107,7 @@ def _better_corner(grid, a, b, runs, needed, robot_radius):
     # nearest the crossing first: of equal clearances, the first is taken
     corners = corners[np.argsort(np.hypot(*(corners - crossing).T), kind='stable')]
     length = np.hypot(*(corners - a).T) + np.hypot(*(b - corners).T)
-    corners = corners[length <= np.sum(np.hypot(*runs.T)) + LENGTH_SLACK_M]
+    corners = corners[length <= (1.0 + LENGTH_SLACK) * np.sum(np.hypot(*runs.T))]
     if len(corners) == 0:
         return None
     clearance = np.minimum(
