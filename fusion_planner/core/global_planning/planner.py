@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fusion_planner.core import distance_transform
-from fusion_planner.core.global_planning import centring, metrics, refine, search
+from fusion_planner.core.global_planning import centring, landmarks, metrics, refine, search
 from fusion_planner.core.errors import (
     GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
 from fusion_planner.core.grid import GridMap
@@ -209,7 +209,11 @@ class GlobalPlanner:
         traversable mask, the padded search grid, its move tables for the
         configured neighbourhood, and loads the compiled search loop
         (:meth:`~fusion_planner.core.global_planning.search.PaddedGrid.prepare`);
-        and the whole clearance map (see :data:`WHOLE_CLEARANCE_CELLS`).
+        the whole clearance map (see :data:`WHOLE_CLEARANCE_CELLS`); and for
+        the exact A* on maps of up to
+        :data:`~fusion_planner.core.global_planning.landmarks.MAX_CELLS`
+        cells, the landmark distances that tighten its heuristic
+        (:mod:`~fusion_planner.core.global_planning.landmarks`).
         Plans on an unchanged map and radius reuse them, so a caller that
         prepares when the map arrives keeps the plans' time to the search.
         Cheap when already prepared.
@@ -217,7 +221,10 @@ class GlobalPlanner:
         t0 = time.perf_counter()
         if distance_transform.AVAILABLE or self.grid.occupied.size <= WHOLE_CLEARANCE_CELLS:
             self.grid.clearance  # computed once and kept by the map
-        self._search_grid().prepare(self.config.neighbourhood)
+        padded = self._search_grid()
+        padded.prepare(self.config.neighbourhood)
+        if padded.landmarks is None and landmarks.wanted(self.grid.shape, self.config.policy()):
+            padded.landmarks = landmarks.distance_table(padded)
         return time.perf_counter() - t0
 
     def _search_grid(self):
