@@ -34,7 +34,7 @@ import time
 from dataclasses import asdict, dataclass, field, replace
 
 from fusion_planner.cli.progress import Progress
-from fusion_planner.core.global_planning import search
+from fusion_planner.core.global_planning import landmarks, search
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.map_files import load_movingai, movingai_cell, read_scenarios
@@ -296,6 +296,10 @@ def policies(algorithms, config=None):
 class PreparedMap:
     """A MovingAI map loaded once and its search grid (radius 0).
 
+    The grid gets the landmarks the planner's ``prepare`` gives an exact A*
+    on a map of this size (:mod:`~fusion_planner.core.global_planning.landmarks`),
+    so the rows check the A* the planner runs; the other policies ignore them.
+
     Parameters
     ----------
     map_path : str or os.PathLike
@@ -304,6 +308,8 @@ class PreparedMap:
     def __init__(self, map_path):
         self.grid = load_movingai(map_path)
         self.padded = search.PaddedGrid(self.grid.traversable(0.0))
+        if landmarks.wanted(self.grid.shape, search.astar(8)):
+            self.padded.landmarks = landmarks.distance_table(self.padded)
 
     def solve(self, row, policy):
         """Run one policy on one scenario row.
