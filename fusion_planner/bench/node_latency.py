@@ -41,6 +41,7 @@ from fusion_planner.bench.building_map import BuildingSpec, building_map, far_pa
 from fusion_planner.cli.requirements import require
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
+from fusion_planner.ros.domain import claim_private_domain
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -79,6 +80,7 @@ def run(args):
         raise InvalidInput('--goals must be positive and --seeds not empty')
     require('ros', 'bench node')
     require('bench', 'bench node (its pyastar2d ratio)', modules=('pyastar2d',))
+    claim_private_domain('fusion_planner_bench_domain')
     records = []
     for seed in args.seeds:
         try:
@@ -248,6 +250,7 @@ class Client:
         self.odom_pub = self.node.create_publisher(Odometry, 'odom', 10)
         self.goal_pub = self.node.create_publisher(PoseStamped, 'goal_pose', 10)
         self.paths = []
+        self.start_xy = None
         self.map_accepted = False
         # Raw bytes: the arrival is timed, not this process's conversion of
         # thousands of poses into Python objects (done after the clock stops).
@@ -282,6 +285,7 @@ class Client:
 
     def publish_start(self, xy):
         """Publish the robot's pose as odometry, a few times (best effort)."""
+        self.start_xy = np.asarray(xy, float)
         _, odometry = self._types
         msg = odometry()
         msg.header.frame_id = 'map'
@@ -316,7 +320,8 @@ class Client:
                 if not received.poses:
                     continue  # an empty Path: a failed plan (or the old goal's)
                 points = conv.path_from_msg(received, 'map')
-                if np.hypot(*(points[-1] - goal_xy)) <= GOAL_MATCH_M:
+                if np.hypot(*(points[-1] - goal_xy)) <= GOAL_MATCH_M and \
+                        np.hypot(*(points[0] - self.start_xy)) <= GOAL_MATCH_M:
                     path = (when, points)
             return path is not None
 
