@@ -265,10 +265,10 @@ def test_a_numba_that_fails_to_import_falls_back_to_python(monkeypatch):
 
 
 LANDMARK_POLICIES = {
-    'astar-4': search.astar(4),
-    'astar-8': search.astar(8),
-    'astar-8-euclidean': search.astar(8, 'euclidean'),
-    'jump-points': search.astar(8, jump_points=True),
+    'astar-4': search.astar(4, landmarks=True),
+    'astar-8': search.astar(8, landmarks=True),
+    'astar-8-euclidean': search.astar(8, 'euclidean', landmarks=True),
+    'jump-points': search.astar(8, jump_points=True, landmarks=True),
 }
 
 
@@ -303,6 +303,13 @@ def test_landmarks_keep_astar_exact(name, scene, count, blocked_start, seed):
     assert tuple(found.cells[0]) == start and tuple(found.cells[-1]) == goal
 
 
+def test_landmarks_need_the_exact_astar_with_4_or_8_neighbours():
+    for bad in (dict(neighbourhood=16), dict(heuristic='zero'), dict(gamma=0.2),
+                dict(variable_neighbourhood=True), dict(alpha=0.5)):
+        with pytest.raises(InvalidInput, match='landmarks'):
+            search.SearchPolicy(landmarks=True, **bad)
+
+
 def test_landmarks_sit_in_the_largest_component_and_span_it():
     free = np.ones((30, 40), bool)
     free[:, 10] = False  # a 10-column strip on the left, the rest on the right
@@ -326,7 +333,8 @@ def test_prepare_gives_landmarks_to_the_exact_astar_on_small_maps_only(monkeypat
                              (PlannerConfig(algorithm='astar', jump_points=False), True),
                              (PlannerConfig(algorithm='improved'), False),
                              (PlannerConfig(algorithm='dijkstra'), False),
-                             (PlannerConfig(algorithm='astar', neighbourhood=16), False)):
+                             (PlannerConfig(algorithm='astar', neighbourhood=16), False),
+                             (PlannerConfig(algorithm='astar', landmarks=False), False)):
         planner = GlobalPlanner(grid, config)
         planner.prepare()
         assert (planner._padded.landmarks is not None) == expected, config

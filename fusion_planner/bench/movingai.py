@@ -273,8 +273,9 @@ def policies(algorithms, config=None):
         Names from :data:`ALGORITHMS`.
     config : PlannerConfig, optional
         Settings of the improved A* (default :class:`PlannerConfig`: its
-        weights and heuristic); the neighbourhood is forced to 8, the
-        benchmark's cost model.
+        weights and heuristic) and whether the exact A* uses landmark
+        bounds; the neighbourhood is forced to 8, the benchmark's cost
+        model.
 
     Returns
     -------
@@ -282,8 +283,8 @@ def policies(algorithms, config=None):
     """
     config = config or PlannerConfig()
     table = {
-        'astar': search.astar(8, 'octile'),
-        'jps': search.astar(8, 'octile', jump_points=True),
+        'astar': search.astar(8, 'octile', landmarks=config.landmarks),
+        'jps': search.astar(8, 'octile', jump_points=True, landmarks=config.landmarks),
         'dijkstra': search.dijkstra(8),
         'improved': replace(config, algorithm='improved', neighbourhood=8).policy(),
     }
@@ -308,7 +309,7 @@ class PreparedMap:
     def __init__(self, map_path):
         self.grid = load_movingai(map_path)
         self.padded = search.PaddedGrid(self.grid.traversable(0.0))
-        if landmarks.wanted(self.grid.shape, search.astar(8)):
+        if landmarks.wanted(self.grid.shape, search.astar(8, landmarks=True)):
             self.padded.landmarks = landmarks.distance_table(self.padded)
 
     def solve(self, row, policy):

@@ -38,12 +38,10 @@ MAX_CELLS = 1 << 20
 def wanted(shape, policy):
     """Whether a map of ``shape`` (rows, cols) gets landmarks for searches of ``policy``.
 
-    Only the exact A* with the 4- or 8-neighbourhood uses them (see
-    :func:`search.grid_search`), and only with the compiled loop.
+    When the policy uses them (``SearchPolicy.landmarks``), the map is
+    small enough, and the compiled loop computes them.
     """
-    return (kernel.AVAILABLE and shape[0] * shape[1] <= MAX_CELLS
-            and policy.heuristic != 'zero' and not policy.variable_neighbourhood
-            and policy.neighbourhood in (4, 8))
+    return policy.landmarks and kernel.AVAILABLE and shape[0] * shape[1] <= MAX_CELLS
 
 
 def distance_table(grid, count=COUNT):

@@ -64,6 +64,14 @@ class PlannerConfig:
         same optimal cost, far fewer expansions (``expanded`` then counts
         jump points). False expands cell by cell, as the paper's A*.
         Ignored by the other algorithms and neighbourhoods.
+    landmarks : bool
+        A* with the 4- or 8-neighbourhood takes as its heuristic the larger
+        of the usual one and the landmark bounds that :meth:`GlobalPlanner.prepare`
+        computes on maps of up to
+        :data:`~fusion_planner.core.global_planning.landmarks.MAX_CELLS`
+        cells (:mod:`~fusion_planner.core.global_planning.landmarks`): the
+        same optimal cost, fewer expansions. False keeps the plain
+        heuristic, as the paper's A*. Ignored by the other algorithms.
     refine : bool
         Remove redundant nodes and smooth (section 1.3.3, Table 2).
     centre : bool
@@ -90,6 +98,7 @@ class PlannerConfig:
     beta: float = 1.0
     gamma: float = 0.2
     jump_points: bool = True
+    landmarks: bool = True
     refine: bool = True
     centre: bool = True
     robot_radius: float = 0.0
@@ -113,7 +122,8 @@ class PlannerConfig:
             return search.dijkstra(self.neighbourhood)
         if self.algorithm == 'astar':
             return search.astar(self.neighbourhood, self.heuristic,
-                                jump_points=self.jump_points and self.neighbourhood == 8)
+                                jump_points=self.jump_points and self.neighbourhood == 8,
+                                landmarks=self.landmarks and self.neighbourhood in (4, 8))
         return search.improved_astar(
             alpha=self.alpha, beta=self.beta, gamma=self.gamma,
             neighbourhood=self.neighbourhood, heuristic=self.heuristic or 'euclidean')
@@ -212,8 +222,9 @@ class GlobalPlanner:
         the whole clearance map (see :data:`WHOLE_CLEARANCE_CELLS`); and for
         the exact A* on maps of up to
         :data:`~fusion_planner.core.global_planning.landmarks.MAX_CELLS`
-        cells, the landmark distances that tighten its heuristic
-        (:mod:`~fusion_planner.core.global_planning.landmarks`).
+        cells, the landmark distances that tighten its heuristic (see
+        ``PlannerConfig.landmarks``). Plans without a preparation search
+        without landmarks.
         Plans on an unchanged map and radius reuse them, so a caller that
         prepares when the map arrives keeps the plans' time to the search.
         Cheap when already prepared.

@@ -100,6 +100,10 @@ class SearchPolicy:
         Jump-point pruning (8-neighbourhood, fixed neighbourhood only): the
         same optimal cost with far fewer expansions where open areas and
         walls alternate. See :func:`grid_search`.
+    landmarks : bool
+        Take the larger of the heuristic and the grid's landmark bounds
+        (:attr:`PaddedGrid.landmarks`, when it has them): exact A* with
+        the 4- or 8-neighbourhood only.
     """
 
     neighbourhood: int = 8
@@ -109,6 +113,7 @@ class SearchPolicy:
     gamma: float = 0.0
     variable_neighbourhood: bool = False
     jump_points: bool = False
+    landmarks: bool = False
 
     def __post_init__(self):
         if self.neighbourhood not in nbh.SUPPORTED:
@@ -123,6 +128,11 @@ class SearchPolicy:
             raise InvalidInput(f'gamma must be a non-negative number, got {self.gamma!r}')
         if self.jump_points and (self.neighbourhood != 8 or self.variable_neighbourhood):
             raise InvalidInput('jump points need the fixed 8-neighbourhood')
+        if self.landmarks and (self.neighbourhood not in (4, 8) or self.variable_neighbourhood
+                               or self.heuristic == 'zero' or self.alpha != self.beta
+                               or self.gamma != 0):
+            # their costs are 8-moves: knight moves of the 16-neighbourhood are cheaper
+            raise InvalidInput('landmarks need the exact A* with the 4- or 8-neighbourhood')
 
 
 def dijkstra(neighbourhood=8):
@@ -130,8 +140,9 @@ def dijkstra(neighbourhood=8):
     return SearchPolicy(neighbourhood=neighbourhood, heuristic='zero')
 
 
-def astar(neighbourhood=8, heuristic=None, jump_points=False):
-    """Policy of the classic A* (eq. 1), optionally with jump points (8 only).
+def astar(neighbourhood=8, heuristic=None, jump_points=False, landmarks=False):
+    """Policy of the classic A* (eq. 1), optionally with jump points (8 only)
+    and landmark bounds (4 and 8).
 
     The default heuristic is the tightest admissible one for the
     neighbourhood: Manhattan for 4, octile for 8, Euclidean for 16.
@@ -139,7 +150,7 @@ def astar(neighbourhood=8, heuristic=None, jump_points=False):
     if heuristic is None:
         heuristic = {4: 'manhattan', 8: 'octile', 16: 'euclidean'}.get(neighbourhood, 'octile')
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic,
-                        jump_points=jump_points)
+                        jump_points=jump_points, landmarks=landmarks)
 
 
 def improved_astar(alpha=1.0, beta=1.0, gamma=0.2, neighbourhood=8, heuristic='euclidean'):
