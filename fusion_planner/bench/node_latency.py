@@ -80,7 +80,7 @@ def run(args):
         raise InvalidInput('--goals must be positive and --seeds not empty')
     require('ros', 'bench node')
     require('bench', 'bench node (its pyastar2d ratio)', modules=('pyastar2d',))
-    claim_private_domain('fusion_planner_bench_domain')
+    claim_private_domain()
     records = []
     for seed in args.seeds:
         try:

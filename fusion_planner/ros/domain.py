@@ -16,7 +16,12 @@ DOMAIN_IDS = range(1, 102)
 _lock = None
 
 
-def claim_private_domain(prefix='fusion_planner_test_domain'):
+#: Lock files ``{LOCK_PREFIX}_{id}.lock``: one namespace for every claiming
+#: process (tests, benchmarks, other checkouts), so no two share an id.
+LOCK_PREFIX = 'fusion_planner_test_domain'
+
+
+def claim_private_domain():
     """Set ``ROS_DOMAIN_ID`` to an id no other claiming process on this machine holds.
 
     Each id has a lock file in ``$TMPDIR`` (default ``/tmp``); the first one
@@ -39,7 +44,7 @@ def claim_private_domain(prefix='fusion_planner_test_domain'):
     if _lock is None:
         lock_dir = pathlib.Path(os.environ.get('TMPDIR', '/tmp'))
         for domain in DOMAIN_IDS:
-            handle = open(lock_dir / f'{prefix}_{domain}.lock', 'w')
+            handle = open(lock_dir / f'{LOCK_PREFIX}_{domain}.lock', 'w')
             try:
                 fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
