@@ -126,17 +126,25 @@ def _centre_piece(grid, path, first, last, robot_radius, target):
     yaw = grid.origin[2]
     rotation = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
 
-    def sample(field, pts):
-        local = grid.world_to_grid(pts) - origin - 0.5                 # cell-centre coordinates
-        return ndimage.map_coordinates(field, [local[:, 1], local[:, 0]], order=1, mode='nearest')
+    def local(pts):
+        """Map-frame points [m] as window ``(col, row)`` [cells]."""
+        return grid.world_to_grid(pts) - origin
 
+    def sample(field, at):
+        """``field`` at window points ``at``, bilinear between cell centres."""
+        return ndimage.map_coordinates(field, [at[:, 1] - 0.5, at[:, 0] - 0.5], order=1,
+                                       mode='nearest')
+
+    # a point's window position and clearance carry over to the next
+    # iteration unless it moves
+    here = local(path[first:last])
+    before = sample(clearance, here)
     for _ in range(ITERATIONS):
         inner = path[first:last]
-        before = sample(clearance, inner)
         tangent = path[first + 1:last + 1] - path[first - 1:last - 1]
         tangent /= np.maximum(np.hypot(tangent[:, 0], tangent[:, 1]), 1e-12)[:, None]
         normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
-        gradient = np.column_stack([sample(grad_col, inner), sample(grad_row, inner)]) @ rotation.T
+        gradient = np.column_stack([sample(grad_col, here), sample(grad_row, here)]) @ rotation.T
         climb = np.einsum('ij,ij->i', gradient, normal)
         climb = np.where(before < target, np.sign(climb) * np.minimum(np.abs(climb) / res, 1.0),
                          0.0)
@@ -144,8 +152,9 @@ def _centre_piece(grid, path, first, last, robot_radius, target):
         smooth = SMOOTHING * np.einsum('ij,ij->i', midpoint, normal)
         step = np.clip(climb * STEP_CELLS * res + smooth, -STEP_CELLS * res, STEP_CELLS * res)
         moved = inner + step[:, None] * normal
-        after = sample(clearance, moved)
-        cells = np.floor(grid.world_to_grid(moved) - origin).astype(np.int64)
+        there = local(moved)
+        after = sample(clearance, there)
+        cells = np.floor(there).astype(np.int64)
         inside = np.all((cells >= 0) & (cells < [clearance.shape[1], clearance.shape[0]]), axis=1)
         cell_clearance = np.zeros(len(moved))
         cell_clearance[inside] = clearance[cells[inside, 1], cells[inside, 0]]
@@ -153,3 +162,5 @@ def _centre_piece(grid, path, first, last, robot_radius, target):
         if not np.any(keep):
             break
         path[first:last][keep] = moved[keep]
+        here[keep] = there[keep]
+        before[keep] = after[keep]
