@@ -6,8 +6,9 @@ pose, and once the node has accepted and prepared the map, publishes goals
 one at a time and times each from publishing the goal to receiving the
 non-empty Path that runs from the start to it. Beside each latency it
 prints pyastar2d's search time on the same inflated grid for the same cells
-(measured in this process, in the same run, the median of
-:data:`PEER_REPEATS`), their ratio, and the node's peak resident memory
+(measured in this process right after the node's answer, so that both see
+the same load on a shared machine; the median of :data:`PEER_REPEATS`),
+their ratio, and the node's peak resident memory
 (``VmHWM``) at the end.
 
 Notes
@@ -121,7 +122,6 @@ def measure_floor(seed, goals, algorithm, side_m, min_distance_m=MIN_DISTANCE_M)
     free = grid.traversable(ROBOT_RADIUS)
     start_cell, goal_cells = far_goals(free, goals, min_distance_m / spec.resolution, seed)
     start_xy = grid.world_of(start_cell)
-    peer = [pyastar2d_seconds(free, start_cell, goal) for goal in goal_cells]
     with NodeProcess(algorithm) as node, Client(grid) as client:
         t0 = time.perf_counter()
         client.publish_map()
@@ -131,9 +131,11 @@ def measure_floor(seed, goals, algorithm, side_m, min_distance_m=MIN_DISTANCE_M)
         map_wait = time.perf_counter() - t0
         client.publish_start(start_xy)
         results = []
-        for goal, peer_s in zip(goal_cells, peer):
+        for goal in goal_cells:
             goal_xy = grid.world_of(goal)
             latency, length = client.plan_to(goal_xy, PLAN_TIMEOUT_S, node)
+            # right after the node's answer, so that both see the same load
+            peer_s = pyastar2d_seconds(free, start_cell, goal)
             results.append({'distance_m': float(np.hypot(*(goal_xy - start_xy))),
                             'latency_s': latency, 'pyastar2d_s': peer_s,
                             'path_length_m': length})
