@@ -438,9 +438,13 @@ def _bits(indices):
 
 
 def _warm_up(neighbourhood):
-    """Load the compiled loop for a neighbourhood by one search on a 3 x 3 grid."""
+    """Load the compiled loops for a neighbourhood (and the jump points for 8)
+    by one search each on a 3 x 3 grid."""
     tiny = PaddedGrid(np.ones((3, 3), bool))
-    for policy in (astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)):
+    policies = [astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)]
+    if neighbourhood == 8:
+        policies.append(astar(8, jump_points=True))
+    for policy in policies:
         grid_search(tiny, (0, 0), (2, 2), policy)
 
 
