@@ -70,7 +70,9 @@ def test_quick_run_structure(quick_random):
     assert status == 0
     assert set(report) >= {'suites', 'planners', 'notes', 'scenarios', 'rows', 'targets',
                            'machine'}
-    assert [s['suite'] for s in report['scenarios']] == ['random']
+    assert [s['suite'] for s in report['scenarios']] == ['random', 'random']
+    side = peers.QUICK_RANDOM_SIDE
+    assert [s['name'] for s in report['scenarios']] == [f'random{side}', f'random{side}-pairs']
     ran = {row['planner'] for row in report['rows']}
     assert set(peers.OURS) <= ran
     assert {'pyastar2d', 'tcod', 'pathfinding', 'networkx'} <= ran  # asked for: all ran
@@ -92,7 +94,7 @@ def test_astar_length_equals_an_independent_optimum(quick_random):
     assert math.isfinite(expected)
     scenario = report['scenarios'][0]
     assert scenario['optimal'][0] == pytest.approx(expected, abs=LENGTH_TOL)
-    rows = {row['planner']: row for row in report['rows']}
+    rows = {row['planner']: row for row in report['rows'] if row['scenario'] == f'random{side}'}
     for name in ('astar', 'dijkstra'):
         assert rows[name]['ratio_max'] == pytest.approx(1.0, abs=LENGTH_TOL)
         assert rows[name]['optimal_exact'] == rows[name]['found']

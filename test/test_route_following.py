@@ -148,8 +148,17 @@ def corridor(width_cells, length_cells=80, resolution=0.05):
     return GridMap(occupied, resolution)
 
 
-def test_a_path_along_a_wall_moves_to_the_safety_distance_and_no_further():
+#: Centring reads the whole clearance map when it is prepared, else windows.
+CLEARANCE_SOURCES = pytest.mark.parametrize('whole_clearance', (False, True),
+                                            ids=('windows', 'whole-map'))
+
+
+@CLEARANCE_SOURCES
+def test_a_path_along_a_wall_moves_to_the_safety_distance_and_no_further(whole_clearance):
     grid = corridor(40)                                 # 2 m wide, walls at y = 0.1 and 2.1
+    if whole_clearance:
+        grid.clearance
+    assert grid.clearance_ready == whole_clearance
     path = np.column_stack([np.linspace(0.2, 3.8, 73), np.full(73, 0.35)])
     centred = centre_path(grid, path, robot_radius=0.2, safety_distance=0.3)
     np.testing.assert_allclose(centred[[0, -1]], path[[0, -1]])
@@ -158,10 +167,15 @@ def test_a_path_along_a_wall_moves_to_the_safety_distance_and_no_further():
     assert np.all(middle[:, 1] < 1.0)                   # not pushed to the corridor's middle
 
 
-def test_a_passage_narrower_than_the_safety_distance_is_crossed_through_its_middle():
+@CLEARANCE_SOURCES
+def test_a_passage_narrower_than_the_safety_distance_is_crossed_through_its_middle(
+        whole_clearance):
     grid = corridor(14)                                 # 0.7 m wide, middle at y = 0.45
+    if whole_clearance:
+        grid.clearance
+    assert grid.clearance_ready == whole_clearance
     path = np.column_stack([np.linspace(0.2, 3.8, 73), np.full(73, 0.33)])
-    before = grid.clearance_at(path)
+    before = corridor(14).clearance_at(path)
     centred = centre_path(grid, path, robot_radius=0.2, safety_distance=0.3)
     assert np.all(grid.clearance_at(centred) >= before)
     assert np.all(np.abs(centred[10:-10, 1] - 0.45) < 0.04)

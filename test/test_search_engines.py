@@ -10,6 +10,10 @@ here carries the optimality of A*-8 and Dijkstra over to the compiled loop.
 Jump-point pruning must find a path exactly when plain A*-8 does, at the
 same cost, through legal 8-moves that cut no corner, on the same maps and
 from starts inside the inflation.
+
+Landmark bounds must leave the exact A* (4, 8, jump points) at the cost it
+finds without them, from free starts and from starts inside the inflation,
+with both loops giving the same result.
 """
 
 import numpy as np
@@ -20,7 +24,9 @@ from hypothesis import strategies as st
 from fusion_planner.bench.building_map import BuildingSpec, building_map
 from fusion_planner.core.errors import (
     InvalidInput, NoValidPathCouldBeFound, PlannerCancelled, PlannerTimedOut)
-from fusion_planner.core.global_planning import kernel, search
+from fusion_planner.core.global_planning import kernel, landmarks, search
+from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
+from fusion_planner.core.grid import GridMap
 
 needs_numba = pytest.mark.skipif(not kernel.AVAILABLE, reason='numba is not installed')
 #: The loops this machine can run.
@@ -256,3 +262,83 @@ def test_a_numba_that_fails_to_import_falls_back_to_python(monkeypatch):
     _assert_same(found, expected)
     jumped = search.grid_search(grid, (0, 0), (29, 0), search.astar(8, jump_points=True))
     assert jumped.cost == pytest.approx(expected.cost, abs=1e-9)
+
+
+LANDMARK_POLICIES = {
+    'astar-4': search.astar(4, landmarks=True),
+    'astar-8': search.astar(8, landmarks=True),
+    'astar-8-euclidean': search.astar(8, 'euclidean', landmarks=True),
+    'jump-points': search.astar(8, jump_points=True, landmarks=True),
+}
+
+
+@needs_numba
+@pytest.mark.parametrize('name', sorted(LANDMARK_POLICIES))
+@settings(max_examples=80, deadline=None)
+@given(scene=scenes(), count=st.integers(1, 4), blocked_start=st.booleans(),
+       seed=st.integers(0, 2**32 - 1))
+def test_landmarks_keep_astar_exact(name, scene, count, blocked_start, seed):
+    occupied, start, goal = scene
+    free = ~occupied
+    if blocked_start and occupied.any():
+        blocked = np.argwhere(occupied)
+        start = tuple(int(v) for v in blocked[np.random.default_rng(seed).integers(len(blocked))])
+    policy = LANDMARK_POLICIES[name]
+    bounded = search.PaddedGrid(free)
+    bounded.landmarks = landmarks.distance_table(bounded, count)
+    outcomes = []
+    for engine in search.ENGINES:
+        try:
+            outcomes.append(search.grid_search(bounded, start, goal, policy, engine=engine))
+        except NoValidPathCouldBeFound as err:
+            outcomes.append(type(err))
+    try:
+        expected = search.grid_search(search.PaddedGrid(free), start, goal, policy)
+    except NoValidPathCouldBeFound:
+        assert outcomes == [NoValidPathCouldBeFound] * 2
+        return
+    _assert_same(*outcomes)
+    found = outcomes[0]
+    assert found.cost == pytest.approx(expected.cost, abs=1e-9)
+    assert tuple(found.cells[0]) == start and tuple(found.cells[-1]) == goal
+
+
+def test_landmarks_need_the_exact_astar_with_4_or_8_neighbours():
+    for bad in (dict(neighbourhood=16), dict(heuristic='zero'), dict(gamma=0.2),
+                dict(variable_neighbourhood=True), dict(alpha=0.5)):
+        with pytest.raises(InvalidInput, match='landmarks'):
+            search.SearchPolicy(landmarks=True, **bad)
+
+
+def test_landmarks_sit_in_the_largest_component_and_span_it():
+    free = np.ones((30, 40), bool)
+    free[:, 10] = False  # a 10-column strip on the left, the rest on the right
+    grid = search.PaddedGrid(free)
+    table = landmarks.distance_table(grid, 3)
+    assert table.shape == (len(grid.passable), 3)
+    right = grid.index((15, 30))
+    left = grid.index((15, 2))
+    assert np.isfinite(table[right]).all() and np.isinf(table[left]).all()
+    sites = [grid.cells(np.flatnonzero(table[:, i] == 0)).tolist() for i in range(3)]
+    corners = [[0, 11], [0, 39], [29, 11], [29, 39]]
+    assert all(len(site) == 1 and site[0] in corners for site in sites), sites
+    assert len({tuple(site[0]) for site in sites}) == 3
+    assert landmarks.distance_table(search.PaddedGrid(np.zeros((4, 4), bool))) is None
+
+
+@needs_numba
+def test_prepare_gives_landmarks_to_the_exact_astar_on_small_maps_only(monkeypatch):
+    grid = GridMap(np.random.default_rng(1).random((60, 60)) < 0.2, 0.1)
+    for config, expected in ((PlannerConfig(algorithm='astar'), True),
+                             (PlannerConfig(algorithm='astar', jump_points=False), True),
+                             (PlannerConfig(algorithm='improved'), False),
+                             (PlannerConfig(algorithm='dijkstra'), False),
+                             (PlannerConfig(algorithm='astar', neighbourhood=16), False),
+                             (PlannerConfig(algorithm='astar', landmarks=False), False)):
+        planner = GlobalPlanner(grid, config)
+        planner.prepare()
+        assert (planner._padded.landmarks is not None) == expected, config
+    monkeypatch.setattr(landmarks, 'MAX_CELLS', 60 * 60 - 1)
+    planner = GlobalPlanner(grid, PlannerConfig(algorithm='astar'))
+    planner.prepare()
+    assert planner._padded.landmarks is None

@@ -34,7 +34,7 @@ import time
 from dataclasses import asdict, dataclass, field, replace
 
 from fusion_planner.cli.progress import Progress
-from fusion_planner.core.global_planning import search
+from fusion_planner.core.global_planning import landmarks, search
 from fusion_planner.core.errors import (
     InvalidInput, MapError, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.map_files import load_movingai, movingai_cell, read_scenarios
@@ -273,8 +273,9 @@ def policies(algorithms, config=None):
         Names from :data:`ALGORITHMS`.
     config : PlannerConfig, optional
         Settings of the improved A* (default :class:`PlannerConfig`: its
-        weights and heuristic); the neighbourhood is forced to 8, the
-        benchmark's cost model.
+        weights and heuristic) and whether the exact A* uses landmark
+        bounds; the neighbourhood is forced to 8, the benchmark's cost
+        model.
 
     Returns
     -------
@@ -282,8 +283,8 @@ def policies(algorithms, config=None):
     """
     config = config or PlannerConfig()
     table = {
-        'astar': search.astar(8, 'octile'),
-        'jps': search.astar(8, 'octile', jump_points=True),
+        'astar': search.astar(8, 'octile', landmarks=config.landmarks),
+        'jps': search.astar(8, 'octile', jump_points=True, landmarks=config.landmarks),
         'dijkstra': search.dijkstra(8),
         'improved': replace(config, algorithm='improved', neighbourhood=8).policy(),
     }
@@ -296,14 +297,22 @@ def policies(algorithms, config=None):
 class PreparedMap:
     """A MovingAI map loaded once and its search grid (radius 0).
 
+    The grid gets the landmarks the planner's ``prepare`` gives an exact A*
+    on a map of this size (:mod:`~fusion_planner.core.global_planning.landmarks`),
+    so the rows check the A* the planner runs; the other policies ignore them.
+
     Parameters
     ----------
     map_path : str or os.PathLike
+    with_landmarks : bool
+        False: no landmarks (the A* with its plain heuristic).
     """
 
-    def __init__(self, map_path):
+    def __init__(self, map_path, with_landmarks=True):
         self.grid = load_movingai(map_path)
         self.padded = search.PaddedGrid(self.grid.traversable(0.0))
+        if landmarks.wanted(self.grid.shape, search.astar(8, landmarks=with_landmarks)):
+            self.padded.landmarks = landmarks.distance_table(self.padded)
 
     def solve(self, row, policy):
         """Run one policy on one scenario row.
@@ -341,7 +350,7 @@ def _solve_chunk(map_path, rows, algorithms, config):
 
     Returns a list (per row) of dicts algorithm -> RowOutcome.
     """
-    prepared = PreparedMap(map_path)
+    prepared = PreparedMap(map_path, config.landmarks)
     table = policies(algorithms, config)
     return [{name: prepared.solve(row, table[name]) for name in algorithms} for row in rows]
 
@@ -354,7 +363,7 @@ def run_benchmark(sets, algorithms, config=None, jobs=1, progress=None):
     sets : list of ScenarioSet
     algorithms : sequence of str
     config : PlannerConfig, optional
-        Weights of the improved A*.
+        Weights of the improved A*, and whether A* uses landmarks.
     jobs : int
         Worker processes; 1 runs in this process.
     progress : Progress, optional
@@ -367,12 +376,13 @@ def run_benchmark(sets, algorithms, config=None, jobs=1, progress=None):
     """
     if jobs < 1:
         raise InvalidInput(f'--jobs must be at least 1, got {jobs}')
+    config = config or PlannerConfig()
     policies(algorithms, config)  # validate names before any work
     outcomes = [[None] * len(s.rows) for s in sets]
     order = [(i, k) for i, s in enumerate(sets) for k in range(len(s.rows))]
     random.Random(ORDER_SEED).shuffle(order)
     if jobs == 1:
-        prepared = [PreparedMap(s.map_path) for s in sets]
+        prepared = [PreparedMap(s.map_path, config.landmarks) for s in sets]
         table = policies(algorithms, config)
         for i, k in order:
             row = sets[i].rows[k]
@@ -546,6 +556,9 @@ def add_arguments(parser):
     parser.add_argument('--gamma', type=float, default=defaults.gamma,
                         help='improved A*: gain of the heuristic weight w_n, eqs. (6)-(8) '
                              '(default %(default)s)')
+    parser.add_argument('--no-landmarks', action='store_true',
+                        help='A* with its plain octile heuristic, without the landmark bounds '
+                             'the planner prepares')
     parser.add_argument('--no-progress', action='store_true',
                         help='do not report progress on stderr')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
@@ -566,7 +579,8 @@ def run(args):
         Missing data folder or files, bad options (exit 2 through the CLI).
     """
     rows_per_map = _rows_arg(args.rows)
-    config = PlannerConfig(alpha=args.alpha, beta=args.beta, gamma=args.gamma, refine=False)
+    config = PlannerConfig(alpha=args.alpha, beta=args.beta, gamma=args.gamma, refine=False,
+                           landmarks=not args.no_landmarks)
     algorithms = [name for name in ALGORITHMS if name in args.algorithms]
     folder = pathlib.Path(args.maps) if args.maps else default_data_dir()
     sets = find_scenario_sets(folder, rows_per_map, args.only)
@@ -589,7 +603,8 @@ def run(args):
     else:
         header = (f'MovingAI benchmark: {folder}, {total} rows '
                   f'({"all" if rows_per_map is None else rows_per_map} per map), radius 0, no '
-                  f'refinement; improved A*: {improved.heuristic} heuristic, alpha '
+                  f'refinement; A* {"with" if config.landmarks else "without"} landmarks; '
+                  f'improved A*: {improved.heuristic} heuristic, alpha '
                   f'{improved.alpha:g} beta {improved.beta:g} gamma {improved.gamma:g}; '
                   f'{elapsed:.1f} s wall')
         print(format_table(summaries, failures, header))

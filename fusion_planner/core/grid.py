@@ -252,6 +252,11 @@ class GridMap:
             self._clearance = edt
         return self._clearance
 
+    @property
+    def clearance_ready(self):
+        """Whether :attr:`clearance` has been computed (reading it is then free)."""
+        return self._clearance is not None
+
     def traversable(self, inflation_radius=0.0):
         """Cells a robot centre may occupy, for an inflation radius [m].
 

@@ -52,6 +52,11 @@ STALE, GOAL = -1, -2
 #: expansion pushes at most 16 moves and one re-queued entry.
 HEAP_MARGIN = 18
 
+#: Subtracted from every landmark bound [cells]: the landmark distances
+#: are sums in another order than the search's g, so without it rounding
+#: could lift a bound a few ulps over the true cost.
+LANDMARK_MARGIN = 1e-6
+
 _ROOT2_MINUS_2 = math.sqrt(2.0) - 2.0
 ROOT2 = math.sqrt(2.0)
 
@@ -170,6 +175,27 @@ def _heuristic_term(kind, weight, y, x):
     return weight * (abs(y) + abs(x))
 
 
+def _landmark_term(table, goal_distances, k):
+    """Lower bound on the cost from cell ``k`` to the goal from landmark distances [cells].
+
+    ``max |d(L, k) - d(L, goal)|`` over the landmarks L (triangle
+    inequality), less :data:`LANDMARK_MARGIN`; landmarks that do not reach
+    ``k`` or the goal are skipped. 0 without landmarks.
+    """
+    best = 0.0
+    for i in range(goal_distances.shape[0]):
+        d = table[k, i]
+        to_goal = goal_distances[i]
+        if d == math.inf or to_goal == math.inf:
+            continue
+        d -= to_goal
+        if d < 0.0:
+            d = -d
+        if d > best:
+            best = d
+    return best - LANDMARK_MARGIN if best > LANDMARK_MARGIN else 0.0
+
+
 def _goal_sector(d_row, d_col):
     """Sector (:func:`neighbourhood.sector_of`) of the direction from a cell
     to the goal, ``d`` = cell - goal, in integers without trigonometry.
@@ -193,7 +219,8 @@ def _goal_sector(d_row, d_col):
 
 
 def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width, goal,
-         kind, alpha, weight, variable, state, g, heap, counts, pause_at):
+         kind, alpha, weight, variable, table, goal_distances, state, g, heap, counts,
+         pause_at):
     """Run the loop until the goal, an empty heap, ``pause_at`` expansions or a full heap.
 
     ``counts`` holds ``[heap size, expanded, generated]`` and is updated in
@@ -206,6 +233,7 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
     generated = counts[2]
     capacity = heap.shape[0]
     n_moves = offsets.shape[0]
+    use_landmarks = goal_distances.shape[0] > 0
     all_bits = (1 << n_moves) - 1
     while True:
         status = _stop(size, expanded, pause_at, capacity)
@@ -253,6 +281,8 @@ def _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width
                 if state_k and ng >= g[k]:
                     continue
                 hk = _heuristic_term(kind, weight, d_row + d_rows[i], d_col + d_cols[i])
+                if use_landmarks:
+                    hk = max(hk, weight * _landmark_term(table, goal_distances, k))
                 f = alpha * ng + hk
                 if probe:
                     if f < best_f:
@@ -327,7 +357,8 @@ def _jump_diagonal(free, k, step_row, step_col, goal):
             return k, n
 
 
-def _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts, pause_at):
+def _jump_run(free, width, goal, kind, alpha, weight, table, goal_distances, state, g, parent,
+              heap, counts, pause_at):
     """Jump-point search (8-neighbourhood, no corner cutting) until a stop.
 
     The same contract as :func:`_run`, on the traversable bytes ``free``;
@@ -340,6 +371,7 @@ def _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, co
     expanded = counts[1]
     generated = counts[2]
     capacity = heap.shape[0]
+    use_landmarks = goal_distances.shape[0] > 0
     while True:
         status = _stop(size, expanded, pause_at, capacity)
         if status != RUNNING:
@@ -382,6 +414,8 @@ def _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, co
                 continue
             hk = _heuristic_term(kind, weight, row + n * d_row - goal_row,
                                  col + n * d_col - goal_col)
+            if use_landmarks:
+                hk = max(hk, weight * _landmark_term(table, goal_distances, k))
             if not state_k:
                 generated += 1
             g[k] = ng
@@ -418,10 +452,11 @@ def _natural_or_forced(free, j, width, in_row, in_col, d_row, d_col):
     behind = in_row * width + in_col
     return bool(free[j + side]) and not free[j - behind + side]
 
-#: :func:`_goal_sector` and :func:`_heuristic_term` as plain Python, for the
+#: :func:`_goal_sector`, :func:`_heuristic_term` and :func:`_landmark_term` as plain Python, for the
 #: pure-Python loop.
 goal_sector = _goal_sector
 heuristic_term = _heuristic_term
+landmark_term = _landmark_term
 
 #: Whether :func:`_compile` has run.
 _compiled = False
@@ -435,7 +470,7 @@ def _compile():
     when it compiles that function.
     """
     global AVAILABLE, _compiled, _less, _less_than_row, _copy_row, _set_row, _push, _pop
-    global _stop, _close, _heuristic_term, _goal_sector, _run
+    global _stop, _close, _heuristic_term, _landmark_term, _goal_sector, _run
     global _jump_straight, _jump_diagonal, _natural_or_forced, _jump_run
     if _compiled or not AVAILABLE:
         return
@@ -453,6 +488,7 @@ def _compile():
     _stop = numba.njit(cache=True, inline='always')(_stop)
     _close = numba.njit(cache=True, inline='always')(_close)
     _heuristic_term = numba.njit(cache=True, inline='always')(_heuristic_term)
+    _landmark_term = numba.njit(cache=True, inline='always')(_landmark_term)
     _goal_sector = numba.njit(cache=True, inline='always')(_goal_sector)
     _run = numba.njit(cache=True, nogil=True)(_run)
     _jump_straight = numba.njit(cache=True)(_jump_straight)
@@ -462,8 +498,8 @@ def _compile():
     _compiled = True
 
 
-def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, heap, counts,
-        pause_at):
+def run(allowed, moves, width, goal, kind, alpha, weight, variable, landmarks, state, g, heap,
+        counts, pause_at):
     """Advance a search by one slice (compiled; needs :data:`AVAILABLE`).
 
     Parameters
@@ -504,11 +540,14 @@ def run(allowed, moves, width, goal, kind, alpha, weight, variable, state, g, he
     """
     _compile()
     offsets, costs, d_rows, d_cols, forward_bits, rest_bits = moves
+    table, goal_distances = landmarks
     return _run(allowed, offsets, costs, d_rows, d_cols, forward_bits, rest_bits, width, goal,
-                kind, alpha, weight, variable, state, g, heap, counts, pause_at)
+                kind, alpha, weight, variable, table, goal_distances, state, g, heap, counts,
+                pause_at)
 
 
-def jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts, pause_at):
+def jump_run(free, width, goal, kind, alpha, weight, landmarks, state, g, parent, heap, counts,
+             pause_at):
     """Advance a jump-point search by one slice.
 
     Compiled with numba when :data:`AVAILABLE`, plain Python otherwise (the
@@ -531,5 +570,6 @@ def jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, cou
         A status code as for :func:`run`.
     """
     _compile()
-    return _jump_run(free, width, goal, kind, alpha, weight, state, g, parent, heap, counts,
-                     pause_at)
+    table, goal_distances = landmarks
+    return _jump_run(free, width, goal, kind, alpha, weight, table, goal_distances, state, g,
+                     parent, heap, counts, pause_at)

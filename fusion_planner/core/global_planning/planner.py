@@ -22,7 +22,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fusion_planner.core import distance_transform
-from fusion_planner.core.global_planning import centring, metrics, refine, search, straighten
+from fusion_planner.core.global_planning import (
+    centring, landmarks, metrics, refine, search, straighten)
 from fusion_planner.core.errors import (
     GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
 from fusion_planner.core.grid import GridMap
@@ -68,6 +69,14 @@ class PlannerConfig:
         same optimal cost, far fewer expansions (``expanded`` then counts
         jump points). False expands cell by cell, as the paper's A*.
         Ignored by the other algorithms and neighbourhoods.
+    landmarks : bool
+        A* with the 4- or 8-neighbourhood takes as its heuristic the larger
+        of the usual one and the landmark bounds that :meth:`GlobalPlanner.prepare`
+        computes on maps of up to
+        :data:`~fusion_planner.core.global_planning.landmarks.MAX_CELLS`
+        cells (:mod:`~fusion_planner.core.global_planning.landmarks`): the
+        same optimal cost, fewer expansions. False keeps the plain
+        heuristic, as the paper's A*. Ignored by the other algorithms.
     refine : bool
         Remove redundant nodes and smooth (section 1.3.3, Table 2).
     centre : bool
@@ -101,6 +110,7 @@ class PlannerConfig:
     beta: float = 1.0
     gamma: float = 0.2
     jump_points: bool = True
+    landmarks: bool = True
     refine: bool = True
     centre: bool = True
     fewer_turns: bool = True
@@ -125,7 +135,8 @@ class PlannerConfig:
             return search.dijkstra(self.neighbourhood)
         if self.algorithm == 'astar':
             return search.astar(self.neighbourhood, self.heuristic,
-                                jump_points=self.jump_points and self.neighbourhood == 8)
+                                jump_points=self.jump_points and self.neighbourhood == 8,
+                                landmarks=self.landmarks and self.neighbourhood in (4, 8))
         return search.improved_astar(
             alpha=self.alpha, beta=self.beta, gamma=self.gamma,
             neighbourhood=self.neighbourhood, heuristic=self.heuristic or 'euclidean')
@@ -221,7 +232,12 @@ class GlobalPlanner:
         traversable mask, the padded search grid, its move tables for the
         configured neighbourhood, and loads the compiled search loop
         (:meth:`~fusion_planner.core.global_planning.search.PaddedGrid.prepare`);
-        and the whole clearance map (see :data:`WHOLE_CLEARANCE_CELLS`).
+        the whole clearance map (see :data:`WHOLE_CLEARANCE_CELLS`); and for
+        the exact A* on maps of up to
+        :data:`~fusion_planner.core.global_planning.landmarks.MAX_CELLS`
+        cells, the landmark distances that tighten its heuristic (see
+        ``PlannerConfig.landmarks``). Plans without a preparation search
+        without landmarks.
         Plans on an unchanged map and radius reuse them, so a caller that
         prepares when the map arrives keeps the plans' time to the search.
         Cheap when already prepared.
@@ -229,7 +245,10 @@ class GlobalPlanner:
         t0 = time.perf_counter()
         if distance_transform.AVAILABLE or self.grid.occupied.size <= WHOLE_CLEARANCE_CELLS:
             self.grid.clearance  # computed once and kept by the map
-        self._search_grid().prepare(self.config.neighbourhood)
+        padded = self._search_grid()
+        padded.prepare(self.config.neighbourhood)
+        if padded.landmarks is None and landmarks.wanted(self.grid.shape, self.config.policy()):
+            padded.landmarks = landmarks.distance_table(padded)
         return time.perf_counter() - t0
 
     def _search_grid(self):

@@ -100,6 +100,10 @@ class SearchPolicy:
         Jump-point pruning (8-neighbourhood, fixed neighbourhood only): the
         same optimal cost with far fewer expansions where open areas and
         walls alternate. See :func:`grid_search`.
+    landmarks : bool
+        Take the larger of the heuristic and the grid's landmark bounds
+        (:attr:`PaddedGrid.landmarks`, when it has them): exact A* with
+        the 4- or 8-neighbourhood only.
     """
 
     neighbourhood: int = 8
@@ -109,6 +113,7 @@ class SearchPolicy:
     gamma: float = 0.0
     variable_neighbourhood: bool = False
     jump_points: bool = False
+    landmarks: bool = False
 
     def __post_init__(self):
         if self.neighbourhood not in nbh.SUPPORTED:
@@ -123,6 +128,11 @@ class SearchPolicy:
             raise InvalidInput(f'gamma must be a non-negative number, got {self.gamma!r}')
         if self.jump_points and (self.neighbourhood != 8 or self.variable_neighbourhood):
             raise InvalidInput('jump points need the fixed 8-neighbourhood')
+        if self.landmarks and (self.neighbourhood not in (4, 8) or self.variable_neighbourhood
+                               or self.heuristic == 'zero' or self.alpha != self.beta
+                               or self.gamma != 0):
+            # their costs are 8-moves: knight moves of the 16-neighbourhood are cheaper
+            raise InvalidInput('landmarks need the exact A* with the 4- or 8-neighbourhood')
 
 
 def dijkstra(neighbourhood=8):
@@ -130,8 +140,9 @@ def dijkstra(neighbourhood=8):
     return SearchPolicy(neighbourhood=neighbourhood, heuristic='zero')
 
 
-def astar(neighbourhood=8, heuristic=None, jump_points=False):
-    """Policy of the classic A* (eq. 1), optionally with jump points (8 only).
+def astar(neighbourhood=8, heuristic=None, jump_points=False, landmarks=False):
+    """Policy of the classic A* (eq. 1), optionally with jump points (8 only)
+    and landmark bounds (4 and 8).
 
     The default heuristic is the tightest admissible one for the
     neighbourhood: Manhattan for 4, octile for 8, Euclidean for 16.
@@ -139,7 +150,7 @@ def astar(neighbourhood=8, heuristic=None, jump_points=False):
     if heuristic is None:
         heuristic = {4: 'manhattan', 8: 'octile', 16: 'euclidean'}.get(neighbourhood, 'octile')
     return SearchPolicy(neighbourhood=neighbourhood, heuristic=heuristic,
-                        jump_points=jump_points)
+                        jump_points=jump_points, landmarks=landmarks)
 
 
 def improved_astar(alpha=1.0, beta=1.0, gamma=0.2, neighbourhood=8, heuristic='euclidean'):
@@ -275,6 +286,10 @@ class PaddedGrid:
         self.passable = bytearray(padded.data)
         self._allowed = {}
         self._tables = {}
+        #: Costs from landmark cells to every padded cell, shape (cells,
+        #: landmarks) (:func:`landmarks.distance_table`), or None: lower
+        #: bounds the exact A* adds to its heuristic (:func:`grid_search`).
+        self.landmarks = None
         self._pools = {'d': [], 'q': []}
 
     def index(self, cell):
@@ -423,9 +438,13 @@ def _bits(indices):
 
 
 def _warm_up(neighbourhood):
-    """Load the compiled loop for a neighbourhood by one search on a 3 x 3 grid."""
+    """Load the compiled loops for a neighbourhood (and the jump points for 8)
+    by one search each on a 3 x 3 grid."""
     tiny = PaddedGrid(np.ones((3, 3), bool))
-    for policy in (astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)):
+    policies = [astar(neighbourhood), improved_astar(neighbourhood=neighbourhood)]
+    if neighbourhood == 8:
+        policies.append(astar(8, jump_points=True))
+    for policy in policies:
         grid_search(tiny, (0, 0), (2, 2), policy)
 
 
@@ -569,6 +588,9 @@ def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     closed_bit = _CLOSED
     goal_sector = kernel.goal_sector
     heuristic_term = kernel.heuristic_term
+    table, goal_distances = _landmark_bounds(grid, policy, t)
+    use_landmarks = goal_distances.size > 0
+    landmark_term = kernel.landmark_term
     heap = [(h0, h0, s)]
     generated = 1
     expanded = 0
@@ -617,6 +639,8 @@ def _python_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
                 if state_k and ng >= g[k]:
                     continue
                 hk = heuristic_term(kind, weight, d_row + dr, d_col + dc)  # eqs. 2-4, 8
+                if use_landmarks:
+                    hk = max(hk, weight * landmark_term(table, goal_distances, k))
                 f = alpha * ng + hk
                 if probe:
                     if f < best_f:
@@ -662,10 +686,12 @@ def _compiled_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     state_array = np.frombuffer(state, dtype=np.uint8)
     g_array = np.frombuffer(g, dtype=np.float64)
 
+    bounds = _landmark_bounds(grid, policy, t)
+
     def run_slice(heap, counts, pause_at):
         return kernel.run(allowed, moves, grid.width, t, kind, float(policy.alpha), weight,
-                          policy.variable_neighbourhood, state_array, g_array, heap, counts,
-                          pause_at)
+                          policy.variable_neighbourhood, bounds, state_array, g_array, heap,
+                          counts, pause_at)
 
     found, expanded, generated = _in_slices(run_slice, s, h0, limits)
     return _traced(grid, policy, state, t) if found else None, expanded, generated
@@ -683,8 +709,10 @@ def _jump_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
     parent = grid._take('q')
     parent_array = np.frombuffer(parent, dtype=np.int64)
 
+    bounds = _landmark_bounds(grid, policy, t)
+
     def run_slice(heap, counts, pause_at):
-        return kernel.jump_run(free, grid.width, t, kind, float(policy.alpha), weight,
+        return kernel.jump_run(free, grid.width, t, kind, float(policy.alpha), weight, bounds,
                                state_array, g_array, parent_array, heap, counts, pause_at)
 
     try:
@@ -698,6 +726,48 @@ def _jump_loop(grid, policy, s, t, kind, weight, h0, state, g, limits):
         return path, expanded, generated
     finally:
         grid._give(parent)
+
+
+#: :func:`_landmark_bounds` of a search without landmarks.
+_NO_LANDMARKS = (np.empty((1, 0)), np.empty(0))
+
+
+def _landmark_bounds(grid, policy, t):
+    """``(table, goal distances)`` of the grid's landmarks for a search to ``t``.
+
+    Only an exact A* with the 4- or 8-neighbourhood uses them (their
+    distances are 8-neighbourhood costs, a lower bound for both; the
+    16-neighbourhood's knight moves are cheaper than two 8-moves); and only
+    the landmarks that reach the goal.
+    """
+    table = grid.landmarks
+    if (table is None or policy.heuristic == 'zero' or policy.variable_neighbourhood
+            or policy.neighbourhood not in (4, 8)):
+        return _NO_LANDMARKS
+    return table, table[t]
+
+
+def exhaustive_distances(grid, source):
+    """Cost [cells] from ``source`` to every padded cell (8-neighbourhood, no corner cutting).
+
+    Dijkstra's algorithm run to exhaustion with the compiled loop (needs
+    :data:`kernel.AVAILABLE`). Returns float64 of padded-grid size, inf
+    where ``source`` does not reach.
+    """
+    state = np.zeros(len(grid.passable), np.uint8)
+    g = np.empty(len(grid.passable))
+    state[source] = _START_CODE
+    g[source] = 0.0
+    allowed = grid.allowed_array(8)
+    moves = grid.kernel_moves(8)
+
+    def run_slice(heap, counts, pause_at):
+        return kernel.run(allowed, moves, grid.width, -1, kernel.ZERO, 1.0, 0.0, False,
+                          _NO_LANDMARKS, state, g, heap, counts, pause_at)
+
+    _in_slices(run_slice, source, 0.0, _Limits(None, None, None))
+    g[state == 0] = np.inf
+    return g
 
 
 def _in_slices(run_slice, s, h0, limits):
