@@ -12,15 +12,19 @@ obstacles and an obstacle the map does not show) until the robot arrives or
 the simulated time limit passes:
 
 - by default in this process, the three nodes in one
-  ``SingleThreadedExecutor`` (their callbacks are short; the simulator steps
-  in lockstep with the local planner);
+  ``SingleThreadedExecutor`` (their callbacks are short);
 - with ``--processes``, as three processes of the installed executables
   (``--ros-args --params-file config/params.yaml`` plus the scenario's robot
   as ``-p`` overrides), talking over DDS; their logs go beside the picture.
 
 The simulator publishes the simulated time on ``/clock`` and the planners run
 on it (``use_sim_time``), ``--real-time-factor`` times faster than the wall
-clock. While it runs, a progress line on stderr (redrawn in place on a
+clock at most. The three nodes run in lockstep (their ``lockstep``
+parameter): each simulator step publishes one sensor set, the global planner
+answers it with its plan, the local planner with a TwistStamped command
+stamped alike, and only then does the world step on. The same scenario gives
+the same run, step for step, at any real-time factor the machine sustains;
+a slower machine just takes longer. While it runs, a progress line on stderr (redrawn in place on a
 terminal, see :class:`~fusion_planner.cli.progress.StatusLine`) shows the
 simulated time, the distance to the goal, the collisions so far and an
 estimate of the wall time left (from the share of the straight-line
@@ -161,7 +165,8 @@ def node_parameters(scenario, scenario_path, real_time_factor):
     -------
     dict
         ``{node name: {parameter: value}}``; values typed as the nodes
-        declare them (floats stay floats). The planners run on simulated time;
+        declare them (floats stay floats). The three nodes run in lockstep
+        (stamped commands); the planners on simulated time;
         the robot radius, speed limits and follower tuning come from the
         scenario (:func:`~fusion_planner.core.simulation.episodes.follower_params`), the
         control and simulation rates from its ``limits.dt``.
@@ -180,13 +185,13 @@ def node_parameters(scenario, scenario_path, real_time_factor):
              if f.name not in ('apf', 'control_period')}
     local.update({local_planner.APF_PREFIX + f.name: getattr(follower.apf, f.name)
                   for f in fields(follower.apf) if f.name != 'robot_radius'})
-    local['control_rate'] = rate
+    local.update(control_rate=rate, lockstep=True, enable_stamped_cmd_vel=True)
     values = {
         'simulator': {'scenario': str(scenario_path), 'rate': rate,
                       'real_time_factor': float(real_time_factor), 'publish_goal': True,
-                      'sync_with_controller': True, 'max_command_lag': 0.0, 'start_paused': True,
+                      'lockstep': True, 'enable_stamped_cmd_vel': True, 'start_paused': True,
                       'diagnostics_period': SIMULATOR_STATUS_PERIOD_S},
-        'global_planner': {'algorithm': planner.algorithm, 'neighbourhood': planner.neighbourhood,
+        'global_planner': {'lockstep': True, 'algorithm': planner.algorithm, 'neighbourhood': planner.neighbourhood,
                            'alpha': planner.alpha, 'beta': planner.beta, 'gamma': planner.gamma,
                            'refine': planner.refine, 'robot_radius': planner.robot_radius,
                            'safety_distance': planner.safety_distance},
@@ -340,10 +345,13 @@ class RunRecorder:
                                     else self.sim_time)
 
     def on_plan(self, msg):
+        """A non-empty plan; the same plan again (a lockstep answer) is not a new one."""
         if len(msg.poses):
+            plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
             with self._lock:
-                self.plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
-                self.plans.append(self.plan)
+                if self.plan is None or not np.array_equal(plan, self.plan):
+                    self.plan = plan
+                    self.plans.append(plan)
 
     def on_diagnostics(self, msg, namespace='/'):
         """Take the statuses of the nodes under ``namespace`` from ``/diagnostics``."""
@@ -838,10 +846,10 @@ def recorded_topics():
     latched ``map``, ``plan`` and ``amcl_pose``, best effort for the laser
     ``scan``, reliable otherwise; deep (:data:`RECORD_DEPTH`). ``odom`` is in
     the drifting odom frame, ``ground_truth`` and ``amcl_pose`` in map.
-    The demo's local planner publishes ``Twist`` on ``cmd_vel``.
+    The demo's local planner publishes ``TwistStamped`` on ``cmd_vel``.
     """
     from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+    from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped
     from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import LaserScan
@@ -857,7 +865,7 @@ def recorded_topics():
             ('odom', Odometry, reliable), ('ground_truth', Odometry, reliable),
             ('amcl_pose', PoseWithCovarianceStamped, latched), ('scan', LaserScan, sensor),
             ('obstacles', MarkerArray, reliable), ('tracks', MarkerArray, reliable),
-            ('cmd_vel', Twist, reliable),
+            ('cmd_vel', TwistStamped, reliable),
             ('goal_pose', PoseStamped, reliable), ('goal_outcome', String, reliable),
             ('/diagnostics', DiagnosticArray, reliable))
 

@@ -16,9 +16,23 @@ clock, whatever ``use_sim_time`` says); it is an upper bound:
   controller's rate equal to ``rate``). A controller silent for
   :data:`COMMAND_WAIT_LIMIT_S` of wall time is taken for gone: the world runs
   on and the robot stops after ``cmd_timeout``;
+- with ``lockstep`` (the demo sets it; default off) the run no longer
+  depends on the machine's speed: every step publishes the whole sensor set
+  (odometry, ground truth, ``amcl_pose``, TF, scan, obstacles - a lone
+  DELETEALL marker without moving obstacles -, clock; the ``scan_rate`` and
+  ``localization_rate`` are not used), all stamped with the
+  step's simulated time, and the next step waits until a ``cmd_vel``
+  TwistStamped with that stamp (the local planner's answer to that set,
+  see :mod:`fusion_planner.ros.lockstep`) has arrived, then goes ahead as
+  soon as ``real_time_factor`` allows. A plain Twist cannot be matched to a
+  step: it is an error on diagnostics and the log, and the world runs free
+  (on the wall clock). A step not answered within ``lockstep_timeout`` of
+  wall time is reported and the world runs free until the controller answers
+  a step again, so nothing ever hangs;
 - with ``start_paused`` the world stays at t = 0 (sensors and clock still
   published) until the first plan appears, so moving obstacles do not
-  wander off before the robot can start and every run starts alike.
+  wander off before the robot can start and every run starts alike. The
+  sensor set of t = 0 is computed once and republished unchanged.
 
 Topics (relative names, so a namespace or a remap applies):
 
@@ -40,7 +54,7 @@ Topics (relative names, so a namespace or a remap applies):
   install): ``odom_frame_id`` -> ``robot_frame_id`` every step and
   ``frame_id`` -> ``odom_frame_id`` (the localizer's estimate) with each
   ``amcl_pose``.
-- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame
+- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS - reliable in lockstep -, frame
   ``robot_frame_id``) out at ``scan_rate``: the world's ray-cast scan
   (REP-117: ``+inf`` no return, ``-inf`` too close).
 - ``obstacles`` (visualization_msgs/MarkerArray) out with each scan: one
@@ -96,7 +110,7 @@ from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.scenario import load_scenario
 from fusion_planner.core.simulation.world import World
 from fusion_planner.ros import conversions as conv
-from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
 from fusion_planner.ros.frames import map_from_odom
 from fusion_planner.ros.robot_sensors import DriftingOdometry, NoisyLocalizer
@@ -133,6 +147,11 @@ PAUSED_PUBLISH_PERIOD_S = 0.1
 #: Wall time a subscriber must have been matched before the goal is sent [s]
 #: (gives the subscriber's side of discovery time to match us back).
 GOAL_MATCH_SETTLE_S = 0.3
+#: The error of a lockstep simulator that receives an unstamped command.
+UNSTAMPED_PROBLEM = (
+    'lockstep needs stamped velocity commands: cmd_vel carries geometry_msgs/Twist, which '
+    'cannot be matched to a step; set enable_stamped_cmd_vel on the controller (TwistStamped '
+    'stamped with the sensor data it answers). Running free on the wall clock')
 
 
 @dataclass(frozen=True)
@@ -157,6 +176,8 @@ class SimulatorParams:
     publish_goal: bool = False
     start_paused: bool = False
     enable_stamped_cmd_vel: bool = False
+    lockstep: bool = False
+    lockstep_timeout: float = 5.0
     diagnostics_period: float = 1.0
     autostart: bool = True
 
@@ -216,6 +237,15 @@ PARAMETER_SPECS = (
     ParameterSpec('enable_stamped_cmd_vel', False,
                   'subscribe cmd_vel as TwistStamped at start-up (Twist otherwise); either way the '
                   'node then follows the type of the cmd_vel publishers it finds', read_only=True),
+    ParameterSpec('lockstep', False,
+                  'publish the whole sensor set every step and step on only when the cmd_vel '
+                  "TwistStamped stamped with that set's time has arrived: the same scenario "
+                  'gives the same run at any real_time_factor (needs stamped commands)',
+                  read_only=True),
+    ParameterSpec('lockstep_timeout', 5.0,
+                  'with lockstep: wall time a step waits for its command before the world runs '
+                  'free (reported) until the controller answers a step again [s]',
+                  float_range(0.01, 600.0)),
     ParameterSpec('diagnostics_period', 1.0, 'wall period of the diagnostics status [s]',
                   float_range(0.05, 60.0), read_only=True),
     ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
@@ -380,6 +410,12 @@ class SimulatorNode(ManagedNode):
         self._commands_flow = False  # a controller is sending commands (see max_command_lag)
         self._waiting_since = None   # wall time the simulation began waiting for one [s]
         self._next_scan_time = 0.0
+        # lockstep state
+        self._lockstep_engaged = params.lockstep  # steps wait for their command
+        self._step_answered = True  # the command answering the current step has arrived
+        self._step_published_wall = -math.inf  # wall time the current step went out [s]
+        self._lockstep_problem = ''  # why the world runs free despite lockstep ('' none)
+        self._held_messages = None  # the sensor set of t = 0 while held
         self.min_clearance = self.world.clearance()
         self.distance_travelled = 0.0
         self._rtf_mark = (time.monotonic(), 0.0)  # (wall, sim) at the last status
@@ -399,13 +435,15 @@ class SimulatorNode(ManagedNode):
         self._truth_pub = publisher(Odometry, 'ground_truth', RELIABLE_QOS)
         self._localization_pub = publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED_QOS)
         self._tf_pub = publisher(TFMessage, '/tf', RELIABLE_QOS) if TFMessage else None
-        self._scan_pub = publisher(LaserScan, 'scan', SENSOR_QOS)
+        # lockstep: a lost scan would leave its step unanswered
+        self._scan_pub = publisher(LaserScan, 'scan', RELIABLE_QOS if params.lockstep
+                                   else SENSOR_QOS)
         self._obstacles_pub = publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
         self._clock_pub = publisher(ClockMsg, 'clock', RELIABLE_QOS)
         self._goal_pub = publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
         self._cmd_vel_sub = self.create_subscription(
             TwistStamped if params.enable_stamped_cmd_vel else Twist, 'cmd_vel',
-            guard('cmd_vel', self._on_cmd_vel), RELIABLE_QOS)
+            guard('cmd_vel', self._on_cmd_vel_then_step), RELIABLE_QOS)
         self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
                                            ReliabilityPolicy.RELIABLE)
         self.create_timer(CMD_VEL_TYPE_CHECK_PERIOD_S,
@@ -441,6 +479,8 @@ class SimulatorNode(ManagedNode):
         robot = self.scenario.robot
         self._command_time = self.world.time
         self._commands_flow = True
+        if self._params.current.lockstep:
+            self._note_step_answer(msg)
         try:
             v, omega = conv.twist_to_velocity(msg, 'cmd_vel')
             if abs(v) > MAX_COMMAND_FACTOR * robot.max_speed \
@@ -453,6 +493,37 @@ class SimulatorNode(ManagedNode):
             self._command = (0.0, 0.0)  # refused: the robot stops for this command
             raise
         self._command = (v, omega)
+
+    def _on_cmd_vel_then_step(self, msg):
+        """Take a command; in lockstep, step at once when it answers the step and the pace allows."""
+        try:
+            self._on_cmd_vel(msg)
+        finally:
+            params = self._params.current
+            if params.lockstep and self.active and self._step_answered and not self._paused \
+                    and time.monotonic() >= self._step_published_wall + self._wall_period(params):
+                self.step()
+
+    def _note_step_answer(self, msg):
+        """Lockstep: whether ``msg`` answers the current step (its stamp is the step's)."""
+        if not hasattr(msg, 'header'):
+            if self._lockstep_problem != UNSTAMPED_PROBLEM:
+                self._lockstep_problem = UNSTAMPED_PROBLEM
+                self.get_logger().error(UNSTAMPED_PROBLEM)
+                self._diagnostics.update(ERROR, UNSTAMPED_PROBLEM, lockstep='off')
+            self._lockstep_engaged = False
+            return
+        if conv.stamp_to_nanoseconds(msg.header.stamp) != self._step_stamp_ns():
+            return  # the answer to an earlier step (after a timeout): applied, not matched
+        self._step_answered = True
+        if not self._lockstep_engaged:
+            self._lockstep_engaged = True
+            self._lockstep_problem = ''
+            self.get_logger().info('lockstep: the controller answers the steps again')
+
+    def _step_stamp_ns(self):
+        """Stamp of the current step's sensor set [ns]."""
+        return conv.stamp_to_nanoseconds(conv.seconds_to_stamp(self.world.time))
 
     def _match_cmd_vel_type(self):
         """Subscribe ``cmd_vel`` with the message type its publishers use."""
@@ -467,7 +538,7 @@ class SimulatorNode(ManagedNode):
             return
         self.destroy_subscription(self._cmd_vel_sub)
         self._cmd_vel_sub = self.create_subscription(
-            known[0], 'cmd_vel', self._diagnostics.guard('cmd_vel', self._on_cmd_vel),
+            known[0], 'cmd_vel', self._diagnostics.guard('cmd_vel', self._on_cmd_vel_then_step),
             RELIABLE_QOS)
         self.get_logger().info(f'cmd_vel is published as {known[0].__name__}: listening to that')
 
@@ -478,6 +549,8 @@ class SimulatorNode(ManagedNode):
             self._goal_answered = True
         if self._paused and path is not None:
             self._paused = False
+            self._command = (0.0, 0.0)  # the first step leaves the robot at rest
+            self._step_answered = True
             self.get_logger().info('first plan received: the world starts moving')
 
     def _on_parameters_changed(self, old, new):
@@ -491,25 +564,36 @@ class SimulatorNode(ManagedNode):
 
     # -- simulation -------------------------------------------------------------
 
+    def _wall_period(self, params):
+        """Wall time of one step at ``real_time_factor`` [s]."""
+        return self._dt / params.real_time_factor
+
     def _make_step_timer(self, params):
-        wall_period = self._dt / params.real_time_factor
-        return self.create_timer(wall_period, self._diagnostics.guard('step', self.step),
+        return self.create_timer(self._wall_period(params),
+                                 self._diagnostics.guard('step', self._on_step_timer),
                                  clock=self._steady)
 
-    def step(self):
-        """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+    def _on_step_timer(self):
+        """Step when the world may move: not held, not waiting for the controller."""
         if not self.active:
             return
         params = self._params.current
-        world = self.world
         if self._paused:
             now = time.monotonic()
             if now - self._paused_published >= PAUSED_PUBLISH_PERIOD_S:
                 self._paused_published = now
-                self._publish_sensors(params, force_scan=True)
+                if self._held_messages is None:
+                    self._held_messages = self._sensor_messages(params, force_scan=True)
+                self._publish(self._held_messages)
             return
-        if self._command_late(params):
+        if self._lockstep_waits(params) if params.lockstep else self._command_late(params):
             return
+        self.step()
+
+    def step(self):
+        """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+        params = self._params.current
+        world = self.world
         v, omega = self._command
         if world.time - self._command_time > params.cmd_timeout:
             v = omega = 0.0
@@ -525,37 +609,66 @@ class SimulatorNode(ManagedNode):
                 f'collision (contact event {world.contact_events}) at t = {world.time:.2f} s')
         self.distance_travelled += float(np.hypot(*(world.pose[:2] - before)))
         self.min_clearance = min(self.min_clearance, world.clearance())
-        self._publish_sensors(params)
+        self._step_answered = False
+        self._step_published_wall = time.monotonic()
+        self._publish(self._sensor_messages(params))
 
-    def _publish_sensors(self, params, force_scan=False):
-        """Publish odometry, the scan and obstacles when due, then the clock."""
+    def _publish(self, messages):
+        for publisher, msg in messages:
+            publisher.publish(msg)
+
+    def _sensor_messages(self, params, force_scan=False):
+        """``(publisher, message)`` of the step: odometry, the scan and obstacles when due, the clock.
+
+        In lockstep the localization pose and the scan are due every step.
+        """
         world = self.world
         stamp = conv.seconds_to_stamp(world.time)
         # Sensors first, the clock last: a node whose timer wakes on the new
         # time has (most likely) already received the data of that time.
         odometry = self._odometry_model
-        self._odom_pub.publish(odometry_msg(odometry.pose, odometry.velocity, self._odom_frame_id,
-                                            self._robot_frame_id, stamp))
-        self._truth_pub.publish(odometry_msg(world.pose, world.velocity, self._frame_id,
-                                             self._robot_frame_id, stamp))
+        messages = [
+            (self._odom_pub, odometry_msg(odometry.pose, odometry.velocity, self._odom_frame_id,
+                                          self._robot_frame_id, stamp)),
+            (self._truth_pub, odometry_msg(world.pose, world.velocity, self._frame_id,
+                                           self._robot_frame_id, stamp))]
         transforms = [(self._odom_frame_id, odometry.pose)]
-        if world.time + TIME_EPS_S >= self._next_localization_time:
+        if params.lockstep or world.time + TIME_EPS_S >= self._next_localization_time:
             self._next_localization_time = world.time + 1.0 / params.localization_rate
             estimate = self._localizer.estimate(world.pose)
-            self._localization_pub.publish(self._localization_msg(estimate, stamp))
+            messages.append((self._localization_pub, self._localization_msg(estimate, stamp)))
             transforms.append((self._frame_id, map_from_odom(estimate, odometry.pose)))
         if self._tf_pub is not None:
-            self._tf_pub.publish(self._tf_msg(transforms, stamp))
-        if force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
-            period = 1.0 / params.scan_rate
+            messages.append((self._tf_pub, self._tf_msg(transforms, stamp)))
+        if params.lockstep or force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
+            period = self._dt if params.lockstep else 1.0 / params.scan_rate
             self._next_scan_time = world.time + period
-            self._scan_pub.publish(scan_to_msg(world.scan(), self.scenario.scan,
-                                               self._robot_frame_id, stamp, period))
+            messages.append((self._scan_pub, scan_to_msg(world.scan(), self.scenario.scan,
+                                                         self._robot_frame_id, stamp, period)))
             tracked = world.tracked_obstacles()
             if len(tracked):
-                self._obstacles_pub.publish(conv.obstacles_to_markers(
-                    tracked, self._frame_id, stamp, ns='moving_obstacles'))
-        self._clock_pub.publish(ClockMsg(clock=stamp))
+                messages.append((self._obstacles_pub, conv.obstacles_to_markers(
+                    tracked, self._frame_id, stamp, ns='moving_obstacles')))
+            elif params.lockstep:  # every step has its set: "no moving obstacles", stamped
+                messages.append((self._obstacles_pub, MarkerArray(
+                    markers=[conv.delete_all_marker(self._frame_id, stamp)])))
+        messages.append((self._clock_pub, ClockMsg(clock=stamp)))
+        return messages
+
+    def _lockstep_waits(self, params):
+        """Lockstep: whether this step waits for the command answering the last one."""
+        if not self._lockstep_engaged or self._step_answered:
+            return False
+        if time.monotonic() - self._step_published_wall < params.lockstep_timeout:
+            return True
+        self._lockstep_engaged = False
+        self._lockstep_problem = (
+            f'lockstep: no cmd_vel stamped {self.world.time:.3f} s (the sensor set it answers) '
+            f'within {params.lockstep_timeout:g} s of wall time: running free until the '
+            'controller answers a step again (the robot stops after cmd_timeout)')
+        self.get_logger().warning(self._lockstep_problem)
+        self._diagnostics.update(WARN, self._lockstep_problem, lockstep='timed out')
+        return False
 
     def _command_late(self, params):
         """Whether this step waits for the controller's next command (see max_command_lag)."""
@@ -637,9 +750,14 @@ class SimulatorNode(ManagedNode):
             self._rtf = (sim - self._rtf_mark[1]) / (wall - self._rtf_mark[0])
         self._rtf_mark = (wall, sim)
         collisions = world.contact_events
+        level = OK if collisions == 0 and not self._lockstep_problem else WARN
+        if self._lockstep_problem == UNSTAMPED_PROBLEM:
+            level = ERROR
+        lockstep = 'off' if not self._params.current.lockstep \
+            else 'on' if self._lockstep_engaged else self._lockstep_problem
         self._diagnostics.update(
-            OK if collisions == 0 else WARN,
-            f'{collisions} collision(s), t = {sim:.1f} s',
+            level, f'{collisions} collision(s), t = {sim:.1f} s',
+            lockstep=lockstep,
             collisions=collisions, sim_time_s=sim, min_clearance_m=self.min_clearance,
             distance_travelled_m=self.distance_travelled,
             distance_to_goal_m=float(np.hypot(*(world.pose[:2] - self._goal))),
