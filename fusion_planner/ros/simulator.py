@@ -147,6 +147,9 @@ PAUSED_PUBLISH_PERIOD_S = 0.1
 #: Wall time a subscriber must have been matched before the goal is sent [s]
 #: (gives the subscriber's side of discovery time to match us back).
 GOAL_MATCH_SETTLE_S = 0.3
+#: Longest wall period of the lockstep simulator's timer [s] (see
+#: SimulatorNode._make_step_timer).
+LOCKSTEP_POLL_S = 0.05
 #: The error of a lockstep simulator that receives an unstamped command.
 UNSTAMPED_PROBLEM = (
     'lockstep needs stamped velocity commands: cmd_vel carries geometry_msgs/Twist, which '
@@ -449,6 +452,7 @@ class SimulatorNode(ManagedNode):
         self.create_timer(CMD_VEL_TYPE_CHECK_PERIOD_S,
                           guard('cmd_vel type', self._match_cmd_vel_type), clock=self._steady)
         self._step_timer = self._make_step_timer(params)
+        self._pace_timer = self._make_pace_timer(params)  # lockstep: an early answer's step
         self.create_timer(GOAL_CHECK_PERIOD_S, guard('goal', self._on_goal_timer),
                           clock=self._steady)
         self.create_timer(params.diagnostics_period, guard('status', self._publish_status),
@@ -471,6 +475,7 @@ class SimulatorNode(ManagedNode):
     def cleanup(self):
         """The timers went with the other entities."""
         self._step_timer = None
+        self._pace_timer = None
 
     # -- inputs ---------------------------------------------------------------
 
@@ -500,9 +505,9 @@ class SimulatorNode(ManagedNode):
             self._on_cmd_vel(msg)
         finally:
             params = self._params.current
-            if params.lockstep and self.active and self._step_answered and not self._paused \
-                    and time.monotonic() >= self._step_published_wall + self._wall_period(params):
-                self.step()
+            if params.lockstep and self._lockstep_engaged and self.active \
+                    and self._step_answered and not self._paused:
+                self._step_when_due(params)
 
     def _note_step_answer(self, msg):
         """Lockstep: whether ``msg`` answers the current step (its stamp is the step's)."""
@@ -511,13 +516,13 @@ class SimulatorNode(ManagedNode):
                 self._lockstep_problem = UNSTAMPED_PROBLEM
                 self.get_logger().error(UNSTAMPED_PROBLEM)
                 self._diagnostics.update(ERROR, UNSTAMPED_PROBLEM, lockstep='off')
-            self._lockstep_engaged = False
+            self._set_engaged(False)
             return
         if conv.stamp_to_nanoseconds(msg.header.stamp) != self._step_stamp_ns():
             return  # the answer to an earlier step (after a timeout): applied, not matched
         self._step_answered = True
         if not self._lockstep_engaged:
-            self._lockstep_engaged = True
+            self._set_engaged(True)
             self._lockstep_problem = ''
             self.get_logger().info('lockstep: the controller answers the steps again')
 
@@ -551,12 +556,16 @@ class SimulatorNode(ManagedNode):
             self._paused = False
             self._command = (0.0, 0.0)  # the first step leaves the robot at rest
             self._step_answered = True
+            if self._params.current.lockstep:
+                self._step_when_due(self._params.current)
             self.get_logger().info('first plan received: the world starts moving')
 
     def _on_parameters_changed(self, old, new):
         if new.real_time_factor != old.real_time_factor and self._step_timer is not None:
             self.destroy_timer(self._step_timer)
             self._step_timer = self._make_step_timer(new)
+            self.destroy_timer(self._pace_timer)
+            self._pace_timer = self._make_pace_timer(new)
         self.get_logger().info(f'parameters changed: real_time_factor={new.real_time_factor:g}, '
                                f'scan_rate={new.scan_rate:g} Hz, '
                                f'cmd_timeout={new.cmd_timeout:g} s, '
@@ -569,9 +578,26 @@ class SimulatorNode(ManagedNode):
         return self._dt / params.real_time_factor
 
     def _make_step_timer(self, params):
-        return self.create_timer(self._wall_period(params),
+        """The timer that steps a free-running world; in lockstep it only watches.
+
+        In lockstep the commands step the world (:meth:`_step_when_due`): the
+        timer publishes the held world and notices an unanswered step, at
+        most every :data:`LOCKSTEP_POLL_S`.
+        """
+        period = self._wall_period(params)
+        if params.lockstep and self._lockstep_engaged:
+            period = max(period, LOCKSTEP_POLL_S)
+        return self.create_timer(period,
                                  self._diagnostics.guard('step', self._on_step_timer),
                                  clock=self._steady)
+
+    def _make_pace_timer(self, params):
+        """A timer of one step's wall time, cancelled until an early answer starts it."""
+        timer = self.create_timer(self._wall_period(params),
+                                  self._diagnostics.guard('step', self._on_pace_timer),
+                                  clock=self._steady)
+        timer.cancel()
+        return timer
 
     def _on_step_timer(self):
         """Step when the world may move: not held, not waiting for the controller."""
@@ -586,7 +612,11 @@ class SimulatorNode(ManagedNode):
                     self._held_messages = self._sensor_messages(params, force_scan=True)
                 self._publish(self._held_messages)
             return
-        if self._lockstep_waits(params) if params.lockstep else self._command_late(params):
+        if params.lockstep and self._lockstep_engaged:
+            self._check_step_timeout(params)  # the steps follow the commands
+            if self._lockstep_engaged:
+                return
+        elif not params.lockstep and self._command_late(params):
             return
         self.step()
 
@@ -655,20 +685,45 @@ class SimulatorNode(ManagedNode):
         messages.append((self._clock_pub, ClockMsg(clock=stamp)))
         return messages
 
-    def _lockstep_waits(self, params):
-        """Lockstep: whether this step waits for the command answering the last one."""
-        if not self._lockstep_engaged or self._step_answered:
-            return False
-        if time.monotonic() - self._step_published_wall < params.lockstep_timeout:
-            return True
-        self._lockstep_engaged = False
+    def _check_step_timeout(self, params):
+        """Lockstep: run free (reported) when the current step waited too long for its command."""
+        if self._step_answered \
+                or time.monotonic() - self._step_published_wall < params.lockstep_timeout:
+            return
+        self._set_engaged(False)
         self._lockstep_problem = (
             f'lockstep: no cmd_vel stamped {self.world.time:.3f} s (the sensor set it answers) '
             f'within {params.lockstep_timeout:g} s of wall time: running free until the '
             'controller answers a step again (the robot stops after cmd_timeout)')
         self.get_logger().warning(self._lockstep_problem)
         self._diagnostics.update(WARN, self._lockstep_problem, lockstep='timed out')
-        return False
+
+    def _set_engaged(self, engaged):
+        """Lockstep: whether the steps wait for their commands; the step timer follows."""
+        if engaged == self._lockstep_engaged:
+            return
+        self._lockstep_engaged = engaged
+        if self._step_timer is not None:
+            self.destroy_timer(self._step_timer)
+            self._step_timer = self._make_step_timer(self._params.current)
+
+    def _step_when_due(self, params):
+        """Lockstep, the step answered: step now, or one step's wall time from now.
+
+        (A timer period cannot be changed without recreating the timer, which
+        costs the executor more than the wait is worth: an early answer waits a
+        whole period.)
+        """
+        if time.monotonic() >= self._step_published_wall + self._wall_period(params):
+            self.step()
+        elif self._pace_timer.is_canceled():
+            self._pace_timer.reset()
+
+    def _on_pace_timer(self):
+        """The answered step's wall time has come."""
+        self._pace_timer.cancel()
+        if self.active and self._step_answered and not self._paused:
+            self.step()
 
     def _command_late(self, params):
         """Whether this step waits for the controller's next command (see max_command_lag)."""
