@@ -109,7 +109,8 @@ from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float
 from fusion_planner.ros.qos import LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros import frames
 from fusion_planner.ros.frames import Localization
-from fusion_planner.ros.lockstep import PLAN_STAMP_TOPIC, StepInputs, step_input_qos
+from fusion_planner.ros.lockstep import (
+    PLAN_STAMP_TOPIC, StepInputs, pose_subscription, step_input_qos)
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -358,7 +359,8 @@ class GlobalPlannerNode(ManagedNode):
         self._params = ParameterHandler(self, GlobalPlannerParams, PARAMETER_SPECS)
         params = self._params.current
         self._frame_id = params.frame_id
-        self._step_time_ns = None  # lockstep: stamp of the last step's set [ns]
+        # lockstep: the node's time, from 0 on the stamp of the last step's set [ns]
+        self._step_time_ns = 0 if params.lockstep else None
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period,
                                                 stamp=self._now)
         self._diagnostics.update(WARN, 'unconfigured')
@@ -409,9 +411,9 @@ class GlobalPlannerNode(ManagedNode):
             self.create_subscription(Odometry, 'odom', guard('odom', handlers['odom']),
                                      step_input_qos(params.lockstep))
         if 'amcl_pose' in handlers:
-            self._pose_sub = LatchedOrVolatile(
+            self._pose_sub = pose_subscription(
                 self, PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
-                guard('amcl_pose', handlers['amcl_pose']), ReliabilityPolicy.BEST_EFFORT)
+                guard('amcl_pose', handlers['amcl_pose']), params.lockstep)
         if 'scan' in handlers:
             self.create_subscription(LaserScan, 'scan', guard('scan', handlers['scan']),
                                      step_input_qos(params.lockstep))

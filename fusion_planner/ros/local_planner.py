@@ -132,7 +132,7 @@ from fusion_planner.ros.qos import RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros import frames
 from fusion_planner.ros.frames import Localization
 from fusion_planner.ros.lockstep import (
-    MAX_KEPT_PLANS, PLAN_STAMP_TOPIC, StepInputs, step_input_qos)
+    MAX_KEPT_PLANS, PLAN_STAMP_TOPIC, StepInputs, pose_subscription, step_input_qos)
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -446,7 +446,8 @@ class LocalPlannerNode(ManagedNode):
         params = self._params.current
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
-        self._step_time_ns = None  # lockstep: stamp of the set in hand [ns]
+        # lockstep: the node's time, from 0 on the stamp of the set in hand [ns]
+        self._step_time_ns = 0 if params.lockstep else None
         self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period,
                                                 stamp=self._stamp)
         self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
@@ -530,9 +531,9 @@ class LocalPlannerNode(ManagedNode):
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
         if 'amcl_pose' in handlers:
-            self._pose_sub = LatchedOrVolatile(
-                self, PoseWithCovarianceStamped, 'amcl_pose',
-                guard('amcl_pose', handlers['amcl_pose']), ReliabilityPolicy.BEST_EFFORT)
+            self._pose_sub = pose_subscription(self, PoseWithCovarianceStamped, 'amcl_pose',
+                                               guard('amcl_pose', handlers['amcl_pose']),
+                                               params.lockstep)
         self._outcome_pub = self.create_lifecycle_publisher(
             DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC, RELIABLE_QOS)
         if not params.lockstep:

@@ -18,7 +18,9 @@ scan of step k steers the robot from step k on, whatever arrives first.
 """
 
 from fusion_planner.ros.conversions import stamp_to_nanoseconds
-from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS
+from rclpy.qos import ReliabilityPolicy
+
+from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
 
 #: Stamps whose set is still incomplete kept at most [1]; older ones are
 #: dropped (a lost message: that step is never handed over).
@@ -52,6 +54,19 @@ def step_input_qos(lockstep):
     simulator's publishers are reliable then).
     """
     return RELIABLE_QOS if lockstep else ANY_PUBLISHER_QOS
+
+
+def pose_subscription(node, msg_type, topic, callback, lockstep):
+    """The ``amcl_pose`` subscription.
+
+    Running free, a :class:`~fusion_planner.ros.qos.LatchedOrVolatile` pair
+    (AMCL's latched pose sent before the node joined counts). In lockstep
+    every step carries its pose: one reliable subscription, one callback per
+    step.
+    """
+    if lockstep:
+        return node.create_subscription(msg_type, topic, callback, RELIABLE_QOS)
+    return LatchedOrVolatile(node, msg_type, topic, callback, ReliabilityPolicy.BEST_EFFORT)
 
 
 class StepInputs:
