@@ -613,7 +613,10 @@ class SimulatorNode(ManagedNode):
                 self._publish(self._held_messages)
             return
         if params.lockstep and self._lockstep_engaged:
-            self._check_step_timeout(params)  # the steps follow the commands
+            if self._step_answered:  # the first step; the others follow their commands
+                self._step_when_due(params)
+                return
+            self._check_step_timeout(params)
             if self._lockstep_engaged:
                 return
         elif not params.lockstep and self._command_late(params):
