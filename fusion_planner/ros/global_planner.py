@@ -266,9 +266,9 @@ PARAMETER_SPECS = (
                   float_range(0.0, 10.0)),
     ParameterSpec('lockstep', False,
                   "handle each step's amcl_pose, odom and scan together (one stamp, from a "
-                  'simulator in lockstep), on its stamp, and answer every step with the current '
-                  'plan (empty: none) stamped alike, so a local planner in lockstep plans on '
-                  'what this step planned', read_only=True),
+                  'simulator in lockstep), on its stamp, and name the plan in force after each '
+                  'step on plan_stamp, so a local planner in lockstep steers each step with the '
+                  'plan made on it', read_only=True),
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),

@@ -11,9 +11,9 @@ clock, whatever ``use_sim_time`` says); it is an upper bound:
 
 - with ``sync_with_controller`` (default), once velocity commands flow a
   step waits while the last command is older than ``max_command_lag`` of
-  simulated time, so a controller starved of CPU is not outrun (``0`` is
-  lockstep: one step per command; the demo and tests use it, with the
-  controller's rate equal to ``rate``). A controller silent for
+  simulated time, so a controller starved of CPU is not outrun (``0``: one
+  step per command, with the controller's rate equal to ``rate``; which
+  sensor data a command answers still depends on DDS timing). A controller silent for
   :data:`COMMAND_WAIT_LIMIT_S` of wall time is taken for gone: the world runs
   on and the robot stops after ``cmd_timeout``;
 - with ``lockstep`` (the demo sets it; default off) the run no longer
@@ -229,7 +229,8 @@ PARAMETER_SPECS = (
     ParameterSpec('max_command_lag', 0.25,
                   'largest age of the last command, in simulated time, at which a step goes '
                   "ahead with sync_with_controller; keep it at least the controller's period; "
-                  '0 is lockstep: one step per command (controller rate = rate) [s]',
+                  '0: one step per command (controller rate = rate; for a run that repeats exactly, '
+                  'use lockstep) [s]',
                   float_range(0.0, 60.0)),
     ParameterSpec('publish_goal', False,
                   "publish the scenario's goal on goal_pose once a subscriber is matched"),
