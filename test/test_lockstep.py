@@ -1,8 +1,10 @@
 """Lockstep: the same scenario gives the same run at any real-time factor.
 
-Launch-free, over real DDS: the three nodes in a SingleThreadedExecutor of
-this process, wired as ``fusion-planner demo`` wires them (all three with
-``lockstep``), and a monitor recording the simulator's ground truth. Every
+Launch-free, over real DDS: the three nodes in one executor of this
+process, wired as ``fusion-planner demo`` wires them (all three with
+``lockstep``), and a monitor recording the simulator's ground truth; the
+two runs compared differ in speed and in executor (rclpy's
+SingleThreadedExecutor, the demo's). Every
 wait is bounded. Also the pieces alone: the step sets of
 :class:`~fusion_planner.ros.lockstep.StepInputs`, and a simulator in lockstep
 that gets unstamped commands or none (an error or a report, never a hang).
@@ -103,7 +105,14 @@ def scenario_path(tmp_path_factory):
                           unknown=[UNKNOWN_BOX], moving=PEOPLE)
 
 
-def lockstep_run(context, scenario_path, real_time_factor):
+def spinning(executor, nodes):
+    """A :class:`~fusion_planner.cli.demo_command.Spinner` of ``executor`` with ``nodes``."""
+    for node in nodes:
+        executor.add_node(node)
+    return demo.Spinner(executor)
+
+
+def lockstep_run(context, scenario_path, real_time_factor, executor):
     """One run as the demo wires it; returns ``(arrival time [s], [(stamp, x, y, yaw)])``.
 
     The trajectory is the simulator's ground truth up to the arrival the
@@ -124,10 +133,7 @@ def lockstep_run(context, scenario_path, real_time_factor):
             msg.pose.pose.position.y, msg.pose.pose.orientation.z)),
         QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE))
     nodes = [monitor] + demo.make_nodes(context, params)
-    executor = SingleThreadedExecutor(context=context)
-    for node in nodes:
-        executor.add_node(node)
-    spinner = demo.Spinner(executor)
+    spinner = spinning(executor, nodes)
     try:
         failure = demo.watch(recorder, SIM_TIME_LIMIT_S, WALL_LIMIT_S)
     finally:
@@ -139,8 +145,9 @@ def lockstep_run(context, scenario_path, real_time_factor):
 
 
 def test_two_lockstep_runs_at_different_speeds_drive_the_same_trajectory(context, scenario_path):
-    slow_arrival, slow = lockstep_run(context, scenario_path, real_time_factor=4.0)
-    fast_arrival, fast = lockstep_run(context, scenario_path, real_time_factor=1000.0)
+    slow_arrival, slow = lockstep_run(context, scenario_path, 4.0,
+                                      SingleThreadedExecutor(context=context))
+    fast_arrival, fast = lockstep_run(context, scenario_path, 1000.0, demo.make_executor(context))
     assert slow_arrival == fast_arrival
     assert len(slow) == len(fast) > 100
     assert slow == fast  # every pose of every step, bit for bit
@@ -165,10 +172,7 @@ class LockstepProbe:
         self.node.create_subscription(DiagnosticArray, 'diagnostics', self._on_diagnostics, 50)
         if not overrides.get('enable_stamped_cmd_vel'):  # one topic, one type per process
             self.cmd_pub = self.node.create_publisher(Twist, 'cmd_vel', 10)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(self.sim)
-        executor.add_node(self.node)
-        self.spinner = demo.Spinner(executor)
+        self.spinner = spinning(SingleThreadedExecutor(context=context), [self.sim, self.node])
 
     def _on_clock(self, msg):
         with self.lock:
