@@ -56,6 +56,7 @@ importable, an output path that cannot be written). Every
 ROS topic used is relative, so ``ROS_DOMAIN_ID`` keeps runs apart.
 """
 
+import bisect
 import math
 import os
 import pathlib
@@ -296,6 +297,7 @@ class RunRecorder:
         self.sim_status = {}
         self.sim_status_wall = 0.0
         self.arrived_at = None  # simulated time of arrival [s]
+        self._arrival_claim = None  # stamp of an 'arrived' status still to be judged [s]
         self.failure = None
 
     def end(self):
@@ -328,6 +330,7 @@ class RunRecorder:
         with self._lock:
             self.poses.append((p.position.x, p.position.y, yaw))
             self.pose_times.append(_seconds(msg.header.stamp))
+            self._judge_arrival()
 
     def on_obstacles(self, msg):
         if msg.markers and self.past_limit(_seconds(msg.markers[0].header.stamp)):
@@ -371,10 +374,9 @@ class RunRecorder:
                         self.escape_points.append(self.poses[-1][:2])
                     self.stuck_events = max(self.stuck_events, stuck)
                     if values.get('status') == 'arrived' and self.arrived_at is None \
-                            and not self.past_limit(stamp) \
-                            and self.distance_to_goal() <= self.arrival_radius:
-                        self.arrived_at = stamp  # the local planner runs on simulated time
-                        self.arrived_wall = time.monotonic()
+                            and not self.past_limit(stamp):
+                        self._arrival_claim = stamp  # the local planner runs on simulated time
+                        self._judge_arrival()
                     if values.get('status') == 'failed':
                         self.failure = f'local planner failed: {values.get("last_error", "")}'
                 elif status.name == prefix + 'global_planner':
@@ -382,6 +384,22 @@ class RunRecorder:
                 elif status.name == prefix + 'simulator':
                     self.sim_status = values
                     self.sim_status_wall = time.monotonic()
+
+    def _judge_arrival(self):
+        """Accept a claimed arrival once the true pose of its time is in (lock held).
+
+        The status and the ground truth come on different topics, in either
+        order: the claim waits for the pose stamped at or after it, and is
+        judged on the pose of its own time.
+        """
+        claim = self._arrival_claim
+        if claim is None or not self.pose_times or self.pose_times[-1] < claim - TIME_EPS_S:
+            return
+        self._arrival_claim = None
+        x, y, _ = self.poses[max(bisect.bisect_right(self.pose_times, claim + TIME_EPS_S) - 1, 0)]
+        if math.hypot(x - self.goal[0], y - self.goal[1]) <= self.arrival_radius:
+            self.arrived_at = claim
+            self.arrived_wall = time.monotonic()
 
     def real_time_factor(self):
         """Simulated over wall time from the first clock tick to arrival (or now); NaN before."""
