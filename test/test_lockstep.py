@@ -56,8 +56,10 @@ def _stamped(seconds, data=None):
 
 def test_a_step_is_handed_over_once_complete_in_the_given_order_whatever_the_arrival_order():
     steps = []
-    inputs = StepInputs(('odom', 'scan', 'plan'),
-                        lambda stamp, msgs: steps.append((stamp, [m.child_frame_id for m in msgs])))
+    def on_step(stamp, msgs):
+        steps.append((stamp, [m.child_frame_id for m in msgs]))
+
+    inputs = StepInputs(('odom', 'scan', 'plan'), on_step)
     inputs.add('plan', _stamped(0.1, 'p1'))
     inputs.add('scan', _stamped(0.1, 's1'))
     assert steps == []  # odom of 0.1 s missing

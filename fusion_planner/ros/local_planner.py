@@ -178,9 +178,9 @@ NODE_PARAMETERS = (
     ('use_stamped_twist', False, 'deprecated alias of enable_stamped_cmd_vel: true also '
      'enables it (with a warning)', None, True, ()),
     ('lockstep', False,
-     'compute on each complete per-step set of odom, amcl_pose, scan, obstacles and plan_stamp '
-     '(one stamp, from a simulator and a global planner in lockstep) instead of on a timer, on the '
-     "set's stamp: a run then does not depend on the machine's speed; needs "
+     'compute on each complete per-step set of odom, amcl_pose, scan, obstacles and '
+     'plan_stamp (one stamp, from a simulator and a global planner in lockstep) instead of on '
+     "a timer, on the set's stamp: a run then does not depend on the machine's speed; needs "
      'enable_stamped_cmd_vel', None, True, ()),
     ('publish_zero_when_idle', False,
      'keep publishing a zero cmd_vel at control_rate while idle (no plan, or the plan ended); '

@@ -98,7 +98,7 @@ class StepInputs:
         self.last_stamp_ns = None  # stamp of the last set handed over [ns]
 
     def add(self, name, msg):
-        """Take the message of input ``name`` (see :func:`step_stamp_ns`; one without is ignored)."""
+        """Take a message of input ``name`` (one naming no step is ignored: see step_stamp_ns)."""
         stamp = step_stamp_ns(msg)
         if stamp is None:
             return

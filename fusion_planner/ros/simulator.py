@@ -229,8 +229,8 @@ PARAMETER_SPECS = (
     ParameterSpec('max_command_lag', 0.25,
                   'largest age of the last command, in simulated time, at which a step goes '
                   "ahead with sync_with_controller; keep it at least the controller's period; "
-                  '0: one step per command (controller rate = rate; for a run that repeats exactly, '
-                  'use lockstep) [s]',
+                  '0: one step per command (controller rate = rate; for a run that repeats '
+                  'exactly, use lockstep) [s]',
                   float_range(0.0, 60.0)),
     ParameterSpec('publish_goal', False,
                   "publish the scenario's goal on goal_pose once a subscriber is matched"),
@@ -501,7 +501,7 @@ class SimulatorNode(ManagedNode):
         self._command = (v, omega)
 
     def _on_cmd_vel_then_step(self, msg):
-        """Take a command; in lockstep, step at once when it answers the step and the pace allows."""
+        """Take a command; in lockstep, step when it answers the step (and the pace allows)."""
         try:
             self._on_cmd_vel(msg)
         finally:
@@ -652,7 +652,7 @@ class SimulatorNode(ManagedNode):
             publisher.publish(msg)
 
     def _sensor_messages(self, params, force_scan=False):
-        """``(publisher, message)`` of the step: odometry, the scan and obstacles when due, the clock.
+        """``(publisher, message)`` of a step: odometry, scan and obstacles when due, clock.
 
         In lockstep the localization pose and the scan are due every step.
         """
