@@ -386,6 +386,7 @@ class GlobalPlannerNode(ManagedNode):
         self._localization = Localization(POSE_EXTRAPOLATION_S)
         self._last_now = -math.inf  # latest node-clock time seen [s]
         self._plan_stamp_ns = None  # stamp of the last plan or empty path published [ns]
+        self._waiting_step = None  # lockstep: (stamp [ns], messages) of a step awaiting the map
         self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
         guard = self._diagnostics.guard
@@ -459,7 +460,15 @@ class GlobalPlannerNode(ManagedNode):
     # -- callbacks ------------------------------------------------------------
 
     def _on_step_inputs(self, stamp_ns, messages):
-        """Lockstep: take a step's set in order on its stamp, then answer with the plan."""
+        """Lockstep: take a step's set in order on its stamp, then answer with the plan.
+
+        The first step waits for the map (latched, so its arrival time
+        varies): scans count from the same step in every run.
+        """
+        if self._map_msg is None:
+            self._waiting_step = (stamp_ns, messages)
+            return
+        self._waiting_step = None
         self._step_time_ns = stamp_ns
         guard = self._diagnostics.guard
         for name, msg in zip(self._inputs.names, messages):
@@ -469,6 +478,8 @@ class GlobalPlannerNode(ManagedNode):
 
     def _answer_step(self, stamp_ns):
         """Lockstep: name the plan in force (an empty path before any) on ``plan_stamp``."""
+        if self._waiting_step is not None:
+            return  # that step is not handled yet
         if self._plan_stamp_ns is None:
             self._publish_plan(self._empty_path())
         msg = TimeReference(source=self.get_fully_qualified_name())
@@ -501,6 +512,8 @@ class GlobalPlannerNode(ManagedNode):
         self.get_logger().info(
             f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted, '
             f'prepared for planning in {prepare_s:.3f} s')
+        if self._waiting_step is not None:
+            self._on_step_inputs(*self._waiting_step)
         if self._goal is None:
             self._diagnostics.update(WARN, 'map accepted; waiting for a goal',
                                      map_cells=msg.info.width * msg.info.height)

@@ -79,7 +79,9 @@ computes once per complete set of ``odom``, ``amcl_pose``, ``scan``,
 one stamp (a simulator and a global planner in lockstep publish one of each
 per step), handled in that order
 (:class:`~fusion_planner.ros.lockstep.StepInputs`), followed by the plan
-``plan_stamp`` names (waited for if it has not arrived yet), and the node's time is
+``plan_stamp`` names (waited for if it has not arrived yet; so is the
+``map``, before the first step; at t = 0, the world held until a first
+plan, only the inputs are taken), and the node's time is
 that stamp: odometry and scans are never stale, the controller's progress and
 escape timers run on simulated steps, and the TwistStamped command carries
 the stamp the simulator waits for. A run then depends on the messages only,
@@ -588,6 +590,8 @@ class LocalPlannerNode(ManagedNode):
         with self._lock:
             self._replanner = GridReplanner(grid, config)
             self._scan_tracks.set_map(grid)
+        if self._waiting_step is not None:  # lockstep: a step that waited for the map
+            self._on_step_inputs(*self._waiting_step)
 
     def _replan(self, start, goal, obstacle_points):
         """The controller's replanner: the map plus the scanned obstacles (see GridReplanner).
@@ -726,10 +730,12 @@ class LocalPlannerNode(ManagedNode):
 
         The set ends with the global planner's ``plan_stamp``: the stamp of the
         plan in force after that step. The step waits here until that plan has
-        arrived on ``plan`` (another topic, so possibly later).
+        arrived on ``plan`` (another topic, so possibly later), and until the
+        map has (latched, so its arrival time varies; the scan tracker and
+        the replanner work on it).
         """
         plan_stamp = conv.stamp_to_nanoseconds(messages[-1].time_ref)
-        if plan_stamp not in self._plans:
+        if plan_stamp not in self._plans or self._replanner is None:
             self._waiting_step = (stamp_ns, messages)
             return
         self._waiting_step = None
@@ -738,6 +744,10 @@ class LocalPlannerNode(ManagedNode):
         for name, msg in zip(self._inputs.names, messages[:-1]):
             # a refused message is reported and the step goes on without it
             guard(name, self._input_handlers[name])(msg)
+        if stamp_ns == 0:
+            # The world held at t = 0 until the first plan: which plan the
+            # global planner named first then depends on when the goal came.
+            return
         if plan_stamp != self._plan_in_force:
             self._plan_in_force = plan_stamp
             guard('plan', self._on_plan)(self._plans[plan_stamp])
