@@ -150,6 +150,9 @@ GOAL_MATCH_SETTLE_S = 0.3
 #: Longest wall period of the lockstep simulator's timer [s] (see
 #: SimulatorNode._make_step_timer).
 LOCKSTEP_POLL_S = 0.05
+#: Ticks of the lockstep pace timer per step's wall time [1]: a command that
+#: came early steps the world at most 1/PACE_TICKS_PER_STEP of a step late.
+PACE_TICKS_PER_STEP = 4
 #: The error of a lockstep simulator that receives an unstamped command.
 UNSTAMPED_PROBLEM = (
     'lockstep needs stamped velocity commands: cmd_vel carries geometry_msgs/Twist, which '
@@ -593,8 +596,8 @@ class SimulatorNode(ManagedNode):
                                  clock=self._steady)
 
     def _make_pace_timer(self, params):
-        """A timer of one step's wall time, cancelled until an early answer starts it."""
-        timer = self.create_timer(self._wall_period(params),
+        """A timer of a fraction of a step's wall time, cancelled until an early answer."""
+        timer = self.create_timer(self._wall_period(params) / PACE_TICKS_PER_STEP,
                                   self._diagnostics.guard('step', self._on_pace_timer),
                                   clock=self._steady)
         timer.cancel()
@@ -711,20 +714,22 @@ class SimulatorNode(ManagedNode):
             self.destroy_timer(self._step_timer)
             self._step_timer = self._make_step_timer(self._params.current)
 
-    def _step_when_due(self, params):
-        """Lockstep, the step answered: step now, or one step's wall time from now.
+    def _step_due(self, params):
+        """Whether a step's wall time at ``real_time_factor`` has passed since the last one."""
+        return time.monotonic() >= self._step_published_wall + self._wall_period(params)
 
-        (A timer period cannot be changed without recreating the timer, which
-        costs the executor more than the wait is worth: an early answer waits a
-        whole period.)
-        """
-        if time.monotonic() >= self._step_published_wall + self._wall_period(params):
+    def _step_when_due(self, params):
+        """Lockstep, the step answered: step now, or when its wall time has come."""
+        if self._step_due(params):
             self.step()
         elif self._pace_timer.is_canceled():
             self._pace_timer.reset()
 
     def _on_pace_timer(self):
-        """The answered step's wall time has come."""
+        """Step an early-answered step once its wall time has come."""
+        params = self._params.current
+        if not self._step_due(params):
+            return
         self._pace_timer.cancel()
         if self.active and self._step_answered and not self._paused:
             self.step()
