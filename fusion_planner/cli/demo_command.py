@@ -283,7 +283,8 @@ class RunRecorder:
         self._lock = threading.Lock()
         self.sim_time = 0.0
         self.clock_wall = time.monotonic()  # wall time the clock last advanced
-        self.started_wall = None  # wall time the simulated clock first moved
+        self.started_wall = None  # wall time the simulated clock was first seen moving
+        self.started_sim = 0.0  # the simulated time then [s] (late when discovery was slow)
         self.arrived_wall = None  # wall time the arrival was seen
         self.poses = []        # (x, y, yaw)
         self.pose_times = []   # simulated stamp of each pose [s]
@@ -319,7 +320,7 @@ class RunRecorder:
             if t != self.sim_time:
                 self.clock_wall = time.monotonic()
                 if self.started_wall is None:
-                    self.started_wall = self.clock_wall
+                    self.started_wall, self.started_sim = self.clock_wall, t
             self.sim_time = t
 
     def on_ground_truth(self, msg):
@@ -403,13 +404,13 @@ class RunRecorder:
             self.arrived_wall = time.monotonic()
 
     def real_time_factor(self):
-        """Simulated over wall time from the first clock tick to arrival (or now); NaN before."""
+        """Simulated over wall time from the first clock tick seen to arrival (or now); NaN before."""
         with self._lock:
             if self.started_wall is None:
                 return math.nan
             end = self.arrived_wall if self.arrived_wall is not None else time.monotonic()
             sim_end = self.arrived_at if self.arrived_at is not None else self.sim_time
-        return sim_end / max(end - self.started_wall, 1e-9)
+        return (sim_end - self.started_sim) / max(end - self.started_wall, 1e-9)
 
     def distance_to_goal(self):
         """Distance [m] from the last true pose to the goal (inf before any)."""
