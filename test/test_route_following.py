@@ -10,12 +10,13 @@ from fusion_planner.core.errors import (
 from fusion_planner.core.global_planning.centring import centre_path
 from fusion_planner.core.global_planning.planner import GlobalPlanner, PlannerConfig
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.local_planning.controller_base import FollowerParams
+from fusion_planner.core.local_planning.controller_base import FollowerParams, Observation
 from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.core.local_planning.route import Route
+from fusion_planner.core.local_planning.field_follower import FieldFollower
 from fusion_planner.core.local_planning.speed_policy import (
-    braking_path_gap, turn_cap, turn_speed)
+    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_speed)
 from fusion_planner.core.local_planning.yielding import passing_bounds
 
 PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
@@ -85,6 +86,24 @@ def test_driving_on_past_a_post_at_the_present_clearance_is_allowed_closing_in_i
                               NO_CIRCLES, PARAMS)
     assert parallel == math.inf
     assert toward < 0.5
+
+
+def test_a_robot_far_off_its_direction_turns_on_the_spot_first_and_drives_when_closer():
+    ctrl = FieldFollower(PARAMS)
+    ctrl.set_path(np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([[5.0, 0.0]]))
+
+    def command(yaw, v):
+        obs = Observation(pose=np.array([0.0, 0.0, yaw]), velocity=np.array([v, 0.0]),
+                          obstacle_points=np.zeros((0, 2)), tracked=np.zeros((0, 5)), time=0.0)
+        return ctrl.compute(obs)
+
+    across = command(math.pi / 2, 0.5)                   # 90 degrees off, moving: brake, turn
+    assert across.v == pytest.approx(0.5 - PARAMS.max_accel * PARAMS.control_period)
+    assert across.omega < 0.0
+    standing = command(ROTATE_FIRST_RAD + 0.05, 0.0)
+    assert standing.v == 0.0 and standing.omega < 0.0
+    closer = command(ROTATE_FIRST_RAD - 0.05, 0.0)
+    assert closer.v > 0.0
 
 
 # -- progress --------------------------------------------------------------------------------

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from fusion_planner.core import distance_transform
-from fusion_planner.core.global_planning import centring, metrics, refine, search
+from fusion_planner.core.global_planning import centring, metrics, refine, search, straighten
 from fusion_planner.core.errors import (
     GoalOccupied, GoalOutsideMapBounds, InvalidInput, StartOccupied, StartOutsideMapBounds)
 from fusion_planner.core.grid import GridMap
@@ -37,6 +37,10 @@ ALGORITHMS = ('dijkstra', 'astar', 'improved')
 #: cells (scipy's transform: about 0.1 s for 1024 x 1024). Larger maps keep
 #: the local computation (:meth:`GridMap.clearance_of_cells`).
 WHOLE_CLEARANCE_CELLS = 1 << 20
+
+#: A path with its zig-zags folded replaces the refined one when it is at
+#: most this fraction longer (see ``PlannerConfig.fewer_turns``).
+FOLD_LENGTH_SLACK = 0.03
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,13 @@ class PlannerConfig:
         ``robot_radius + safety_distance`` of clearance
         (:func:`~fusion_planner.core.global_planning.centring.centre_path`;
         beyond the paper): the path a local controller can drive at speed.
+    fewer_turns : bool
+        After centring, fold the path's zig-zags into fewer, longer runs
+        (for a robot of radius plus safety distance above 0) where that
+        keeps the clearance and lengthens the path by at most
+        :data:`FOLD_LENGTH_SLACK`
+        (:mod:`~fusion_planner.core.global_planning.straighten`; beyond the
+        paper): every corner costs a robot time.
     robot_radius : float
         Robot radius [m]; obstacles are inflated by it for the search.
     safety_distance : float
@@ -92,6 +103,7 @@ class PlannerConfig:
     jump_points: bool = True
     refine: bool = True
     centre: bool = True
+    fewer_turns: bool = True
     robot_radius: float = 0.0
     safety_distance: float = 0.0
     path_spacing: float = None
@@ -277,6 +289,8 @@ class GlobalPlanner:
                 grid, key_nodes, cfg.robot_radius, cfg.safety_distance, spacing)
             if cfg.centre:
                 path = centring.centre_path(grid, path, cfg.robot_radius, cfg.safety_distance)
+            if cfg.fewer_turns:
+                path, key_nodes = self._fewer_turns(path, key_nodes, spacing)
         else:
             key_nodes = grid_path[metrics.key_point_indices(grid_path)]
             path = grid_path
@@ -291,6 +305,30 @@ class GlobalPlanner:
             time_s=elapsed)
         return PlanResult(path=path, key_nodes=key_nodes, grid_path=grid_path,
                           metrics=plan_metrics, expanded_cells=found.expanded_cells)
+
+    def _fewer_turns(self, path, key_nodes, spacing):
+        """A refined path with its zig-zags folded, and its vertices as key nodes; or the inputs.
+
+        See :mod:`~fusion_planner.core.global_planning.straighten`. The
+        folded path is rounded and sampled like the first one (its runs were
+        chosen for clearance, it is not centred again) and replaces it only
+        when it is at most :data:`FOLD_LENGTH_SLACK` longer. A point robot
+        (``robot_radius + safety_distance`` of 0, the paper's tables) keeps
+        the path as the paper refines it, as with the centring.
+        """
+        cfg = self.config
+        if cfg.robot_radius + cfg.safety_distance <= 0.0:
+            return path, key_nodes
+        vertices = straighten.fewer_turns(self.grid, path, cfg.robot_radius, cfg.safety_distance)
+        if vertices is None:
+            return path, key_nodes
+        folded = refine.smooth_path(self.grid, vertices, cfg.robot_radius, cfg.safety_distance,
+                                    spacing)
+        if cfg.centre:
+            folded = centring.centre_path(self.grid, folded, cfg.robot_radius, cfg.safety_distance)
+        if metrics.path_length(folded) > (1.0 + FOLD_LENGTH_SLACK) * metrics.path_length(path):
+            return path, key_nodes
+        return folded, vertices
 
     def cells_of(self, start, goal):
         """Validate start and goal [m]; return their ``(row, col)`` cells.

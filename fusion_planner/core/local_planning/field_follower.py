@@ -49,11 +49,12 @@ from fusion_planner.core.errors import (
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
-    thin_points)
+    thin_points, wrap_angle)
 from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
-from fusion_planner.core.local_planning.speed_policy import braking_path_gap, turn_cap
+from fusion_planner.core.local_planning.speed_policy import (
+    ROTATE_FIRST_RAD, braking_path_gap, turn_cap)
 from fusion_planner.core.local_planning.yielding import passing_bounds
 
 LOGGER = logging.getLogger(__name__)
@@ -848,7 +849,10 @@ class FieldFollower(ControllerBase):
         Caps: the adaptive step of eq. (18) (floored at
         :data:`MIN_STEP_FRACTION` of ``max_speed``), the approach cap
         ``approach_gain * goal_distance``, and braking within the free
-        distance straight ahead.
+        distance straight ahead; a route follower measures that distance
+        along its braking path, brakes for the turns ahead, and turns on the
+        spot while its heading is off by more than
+        :data:`~fusion_planner.core.local_planning.speed_policy.ROTATE_FIRST_RAD`.
         """
         p = self.params
         points = scene.all_points
@@ -872,9 +876,12 @@ class FieldFollower(ControllerBase):
                                                    p.control_period))
         v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
                     approach, braking_speed(gap, p.max_accel, p.control_period))
+        heading = math.atan2(direction[1], direction[0])
         if on_route:
             v_cap = min(v_cap, turn_cap(self._route, self._route.station, p))
-        return self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
+            if abs(wrap_angle(heading - obs.pose[2])) > ROTATE_FIRST_RAD:
+                v_cap = 0.0  # turn toward the route on the spot first
+        return self._steer(heading, v_cap, obs)
 
     def _evade(self, obs, scene, command, desired):
         """``command`` within the limits, or an evasive one if it runs into a tracked obstacle.

@@ -8,7 +8,9 @@ route ahead, as far as the robot needs to stop from ``max_speed``, swept by
 the robot's disc plus ``safety_distance``, and the straight line ahead
 (see :func:`braking_path_gap`). Side walls the route runs between are not in
 it. On top of that the speed is capped so that the robot can brake to the
-speed of the sharpest turn ahead in time (:func:`turn_cap`).
+speed of the sharpest turn ahead in time (:func:`turn_cap`), and a robot
+heading more than :data:`ROTATE_FIRST_RAD` off its direction turns on the
+spot first.
 
 Examples
 --------
@@ -40,6 +42,13 @@ LATERAL_ACCEL_FRACTION = 1.0
 
 #: Fraction of ``TURN_BASE`` the turn rate may take to build up at ``max_alpha``.
 RAMP_FRACTION = 1.0
+
+#: A route follower whose heading is off the direction it should drive by
+#: more than this [rad] turns on the spot before it drives on (as Nav2's
+#: rotation shim controller, whose default threshold this is): turning
+#: while driving at such an error swings the robot sideways off its route,
+#: more than the gaps of a post field leave room for.
+ROTATE_FIRST_RAD = math.pi / 4
 
 #: Heading changes [rad] over ``TURN_BASE`` below this are straight.
 STRAIGHT_TURN = 1e-3
