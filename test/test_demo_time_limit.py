@@ -78,6 +78,22 @@ def test_an_arrival_freezes_the_reported_time_and_end_freezes_the_run(recorder):
     assert rec.sim_time == 2.5 and rec.collisions() == 0
 
 
+def test_an_arrival_reported_before_its_true_pose_is_judged_on_the_pose_of_its_time(recorder):
+    scenario, rec = recorder
+    gx, gy = scenario.goal
+    x0, y0 = scenario.start[:2]
+    rec.on_ground_truth(odom(1.9, gx - 1.0, gy))
+    rec.on_diagnostics(status(2.0, '/local_planner', status='arrived'))  # ahead of its pose
+    assert rec.arrived_at is None
+    rec.on_ground_truth(odom(2.0, gx, gy))
+    assert rec.arrived_at == 2.0
+    far = demo.RunRecorder(scenario, goal_tolerance=0.15, time_limit_s=3.0)
+    far.on_ground_truth(odom(1.0, x0, y0))
+    far.on_diagnostics(status(1.0, '/local_planner', status='arrived'))
+    far.on_ground_truth(odom(1.1, gx, gy))  # a later pose does not make that claim true
+    assert far.arrived_at is None
+
+
 def run_demo(tmp_path, *options):
     env = dict(os.environ)
     env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(REPO), env.get('PYTHONPATH')]))

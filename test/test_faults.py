@@ -1,8 +1,10 @@
 """Faults in a running closed loop: sensors stop, the clock jumps back, the planner dies.
 
 The three nodes run in one SingleThreadedExecutor of this process on a short
-corridor, on simulated time in lockstep, as the demo runs them
-(:mod:`fusion_planner.cli.demo_command`); a monitor records clock, odometry,
+corridor, on simulated time, wired as the demo wires them
+(:mod:`fusion_planner.cli.demo_command`) but running free, as on a robot
+(:func:`free_running`: a lost input is a fault to survive, where in lockstep
+it would hold the world); a monitor records clock, odometry,
 plans and diagnostics, and every command the local planner publishes is
 recorded with the simulated time it was computed at and the times of the
 inputs it used (odometry stamp, odometry and scan receipt). Faults are
@@ -86,13 +88,27 @@ class Muted:
         pass
 
 
+def free_running(params):
+    """The demo's parameters (:func:`demo.node_parameters`) without lockstep, in place.
+
+    The simulator still waits for a late controller (``sync_with_controller``,
+    one step per command with ``max_command_lag`` 0), so a busy machine slows
+    the run down rather than changing it much.
+    """
+    for values in params.values():
+        values['lockstep'] = False
+    params['simulator'].update(sync_with_controller=True, max_command_lag=0.0)
+    return params
+
+
 class Loop:
     """Simulator, global and local planner and a monitor, spun in the background."""
 
     def __init__(self, context, scenario_path):
         self.context = context
         self.scenario = load_scenario(scenario_path)
-        self.params = demo.node_parameters(self.scenario, scenario_path, REAL_TIME_FACTOR)
+        self.params = free_running(
+            demo.node_parameters(self.scenario, scenario_path, REAL_TIME_FACTOR))
         self.recorder = demo.RunRecorder(self.scenario,
                                          self.params['local_planner']['goal_tolerance'])
         self.monitor = Node('fault_monitor', context=context)

@@ -34,6 +34,8 @@ from fusion_planner.ros.global_planner import GlobalPlannerNode  # noqa: E402
 from fusion_planner.ros.local_planner import LocalPlannerNode  # noqa: E402
 from fusion_planner.ros.simulator import SimulatorNode  # noqa: E402
 
+from test_faults import free_running  # noqa: E402
+
 REAL_TIME_FACTOR = 10.0
 SIM_TIME_LIMIT_S = 40.0
 WALL_LIMIT_S = 60.0
@@ -61,7 +63,8 @@ def write_room_scenario(folder):
 def test_local_planner_avoids_a_walker_with_no_obstacles_publisher(context, tmp_path):
     path = write_room_scenario(tmp_path)
     scenario = load_scenario(path)
-    params = demo.node_parameters(scenario, path, REAL_TIME_FACTOR)
+    # free running: in lockstep the local planner would wait for each step's obstacles
+    params = free_running(demo.node_parameters(scenario, path, REAL_TIME_FACTOR))
     recorder = demo.RunRecorder(scenario, params['local_planner']['goal_tolerance'])
 
     def overrides(name):

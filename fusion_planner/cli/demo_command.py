@@ -11,16 +11,20 @@ scenario (default: the bundled ``config/scenarios/demo.yaml``, with moving
 obstacles and an obstacle the map does not show) until the robot arrives or
 the simulated time limit passes:
 
-- by default in this process, the three nodes in one
-  ``SingleThreadedExecutor`` (their callbacks are short; the simulator steps
-  in lockstep with the local planner);
+- by default in this process, the three nodes in one executor
+  (:func:`make_executor`; their callbacks are short);
 - with ``--processes``, as three processes of the installed executables
   (``--ros-args --params-file config/params.yaml`` plus the scenario's robot
   as ``-p`` overrides), talking over DDS; their logs go beside the picture.
 
 The simulator publishes the simulated time on ``/clock`` and the planners run
 on it (``use_sim_time``), ``--real-time-factor`` times faster than the wall
-clock. While it runs, a progress line on stderr (redrawn in place on a
+clock at most. The three nodes run in lockstep (their ``lockstep``
+parameter): each simulator step publishes one sensor set, the global planner
+answers it with its plan, the local planner with a TwistStamped command
+stamped alike, and only then does the world step on. The same scenario gives
+the same run, step for step, at any real-time factor the machine sustains;
+a slower machine just takes longer. While it runs, a progress line on stderr (redrawn in place on a
 terminal, see :class:`~fusion_planner.cli.progress.StatusLine`) shows the
 simulated time, the distance to the goal, the collisions so far and an
 estimate of the wall time left (from the share of the straight-line
@@ -52,6 +56,7 @@ importable, an output path that cannot be written). Every
 ROS topic used is relative, so ``ROS_DOMAIN_ID`` keeps runs apart.
 """
 
+import bisect
 import math
 import os
 import pathlib
@@ -161,7 +166,8 @@ def node_parameters(scenario, scenario_path, real_time_factor):
     -------
     dict
         ``{node name: {parameter: value}}``; values typed as the nodes
-        declare them (floats stay floats). The planners run on simulated time;
+        declare them (floats stay floats). The three nodes run in lockstep
+        (stamped commands); the planners on simulated time;
         the robot radius, speed limits and follower tuning come from the
         scenario (:func:`~fusion_planner.core.simulation.episodes.follower_params`), the
         control and simulation rates from its ``limits.dt``.
@@ -180,13 +186,14 @@ def node_parameters(scenario, scenario_path, real_time_factor):
              if f.name not in ('apf', 'control_period')}
     local.update({local_planner.APF_PREFIX + f.name: getattr(follower.apf, f.name)
                   for f in fields(follower.apf) if f.name != 'robot_radius'})
-    local['control_rate'] = rate
+    local.update(control_rate=rate, lockstep=True, enable_stamped_cmd_vel=True)
     values = {
         'simulator': {'scenario': str(scenario_path), 'rate': rate,
                       'real_time_factor': float(real_time_factor), 'publish_goal': True,
-                      'sync_with_controller': True, 'max_command_lag': 0.0, 'start_paused': True,
+                      'lockstep': True, 'enable_stamped_cmd_vel': True, 'start_paused': True,
                       'diagnostics_period': SIMULATOR_STATUS_PERIOD_S},
-        'global_planner': {'algorithm': planner.algorithm, 'neighbourhood': planner.neighbourhood,
+        'global_planner': {'lockstep': True,
+                           'algorithm': planner.algorithm, 'neighbourhood': planner.neighbourhood,
                            'alpha': planner.alpha, 'beta': planner.beta, 'gamma': planner.gamma,
                            'refine': planner.refine, 'robot_radius': planner.robot_radius,
                            'safety_distance': planner.safety_distance},
@@ -276,7 +283,8 @@ class RunRecorder:
         self._lock = threading.Lock()
         self.sim_time = 0.0
         self.clock_wall = time.monotonic()  # wall time the clock last advanced
-        self.started_wall = None  # wall time the simulated clock first moved
+        self.started_wall = None  # wall time the simulated clock was first seen moving
+        self.started_sim = 0.0  # the simulated time then [s] (late when discovery was slow)
         self.arrived_wall = None  # wall time the arrival was seen
         self.poses = []        # (x, y, yaw)
         self.pose_times = []   # simulated stamp of each pose [s]
@@ -291,6 +299,7 @@ class RunRecorder:
         self.sim_status = {}
         self.sim_status_wall = 0.0
         self.arrived_at = None  # simulated time of arrival [s]
+        self._arrival_claim = None  # stamp of an 'arrived' status still to be judged [s]
         self.failure = None
 
     def end(self):
@@ -311,7 +320,7 @@ class RunRecorder:
             if t != self.sim_time:
                 self.clock_wall = time.monotonic()
                 if self.started_wall is None:
-                    self.started_wall = self.clock_wall
+                    self.started_wall, self.started_sim = self.clock_wall, t
             self.sim_time = t
 
     def on_ground_truth(self, msg):
@@ -323,6 +332,7 @@ class RunRecorder:
         with self._lock:
             self.poses.append((p.position.x, p.position.y, yaw))
             self.pose_times.append(_seconds(msg.header.stamp))
+            self._judge_arrival()
 
     def on_obstacles(self, msg):
         if msg.markers and self.past_limit(_seconds(msg.markers[0].header.stamp)):
@@ -340,10 +350,13 @@ class RunRecorder:
                                     else self.sim_time)
 
     def on_plan(self, msg):
+        """A non-empty plan; the same plan again (a lockstep answer) is not a new one."""
         if len(msg.poses):
+            plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
             with self._lock:
-                self.plan = np.array([(q.pose.position.x, q.pose.position.y) for q in msg.poses])
-                self.plans.append(self.plan)
+                if self.plan is None or not np.array_equal(plan, self.plan):
+                    self.plan = plan
+                    self.plans.append(plan)
 
     def on_diagnostics(self, msg, namespace='/'):
         """Take the statuses of the nodes under ``namespace`` from ``/diagnostics``."""
@@ -363,10 +376,9 @@ class RunRecorder:
                         self.escape_points.append(self.poses[-1][:2])
                     self.stuck_events = max(self.stuck_events, stuck)
                     if values.get('status') == 'arrived' and self.arrived_at is None \
-                            and not self.past_limit(stamp) \
-                            and self.distance_to_goal() <= self.arrival_radius:
-                        self.arrived_at = stamp  # the local planner runs on simulated time
-                        self.arrived_wall = time.monotonic()
+                            and not self.past_limit(stamp):
+                        self._arrival_claim = stamp  # the local planner runs on simulated time
+                        self._judge_arrival()
                     if values.get('status') == 'failed':
                         self.failure = f'local planner failed: {values.get("last_error", "")}'
                 elif status.name == prefix + 'global_planner':
@@ -375,14 +387,30 @@ class RunRecorder:
                     self.sim_status = values
                     self.sim_status_wall = time.monotonic()
 
+    def _judge_arrival(self):
+        """Accept a claimed arrival once the true pose of its time is in (lock held).
+
+        The status and the ground truth come on different topics, in either
+        order: the claim waits for the pose stamped at or after it, and is
+        judged on the pose of its own time.
+        """
+        claim = self._arrival_claim
+        if claim is None or not self.pose_times or self.pose_times[-1] < claim - TIME_EPS_S:
+            return
+        self._arrival_claim = None
+        x, y, _ = self.poses[max(bisect.bisect_right(self.pose_times, claim + TIME_EPS_S) - 1, 0)]
+        if math.hypot(x - self.goal[0], y - self.goal[1]) <= self.arrival_radius:
+            self.arrived_at = claim
+            self.arrived_wall = time.monotonic()
+
     def real_time_factor(self):
-        """Simulated over wall time from the first clock tick to arrival (or now); NaN before."""
+        """Simulated over wall time from the first clock tick seen to arrival (or now); NaN before."""
         with self._lock:
             if self.started_wall is None:
                 return math.nan
             end = self.arrived_wall if self.arrived_wall is not None else time.monotonic()
             sim_end = self.arrived_at if self.arrived_at is not None else self.sim_time
-        return sim_end / max(end - self.started_wall, 1e-9)
+        return (sim_end - self.started_sim) / max(end - self.started_wall, 1e-9)
 
     def distance_to_goal(self):
         """Distance [m] from the last true pose to the goal (inf before any)."""
@@ -628,7 +656,7 @@ class Spinner:
     returns within :data:`SPIN_POLL_S` plus the callback in progress, and
     the nodes can be destroyed safely afterwards.
 
-    Give it a ``SingleThreadedExecutor``: rclpy 7.1's
+    Give it a single-threaded executor (:func:`make_executor`): rclpy 7.1's
     ``MultiThreadedExecutor`` busy-waits on a callback group whose callback
     is still running and starves the callbacks themselves of the GIL (the
     closed loop ran at 0.2x real time with it, 6x with one thread).
@@ -657,6 +685,23 @@ class Spinner:
         self._stop.set()
         self._thread.join(timeout=SPIN_STOP_TIMEOUT_S)
         self.executor.shutdown(timeout_sec=SPIN_STOP_TIMEOUT_S)
+
+
+def make_executor(context):
+    """A single-threaded executor for nodes in this process.
+
+    rclpy's EventsExecutor (its C++ event queue, rather than a wait set
+    rebuilt in Python on every spin: the lockstep demo ran 1.4x faster with
+    it, 6.7-7.1x against 4.2-5.1x real time at ``--real-time-factor 1000`` on
+    a busy machine), else ``SingleThreadedExecutor`` where this rclpy lacks
+    it.
+    """
+    try:
+        from rclpy.experimental import EventsExecutor
+    except ImportError:
+        from rclpy.executors import SingleThreadedExecutor
+        return SingleThreadedExecutor(context=context)
+    return EventsExecutor(context=context)
 
 
 def shutdown_executor(spinner, nodes, context=None):
@@ -722,7 +767,6 @@ def run(args):
     wall_start = time.monotonic()
     procs, nodes, spinner, topic_recorder = [], [], None, None
     try:
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.parameter import Parameter
 
@@ -732,7 +776,7 @@ def run(args):
         attach_recorder(nodes[0], recorder)
         if mcap_path is not None:
             topic_recorder = start_recording(nodes[0], mcap_path)
-        executor = SingleThreadedExecutor(context=context)
+        executor = make_executor(context)
         executor.add_node(nodes[0])
         if args.processes:
             procs = start_processes(params, share_file('config/params.yaml'), log_dir)
@@ -838,10 +882,10 @@ def recorded_topics():
     latched ``map``, ``plan`` and ``amcl_pose``, best effort for the laser
     ``scan``, reliable otherwise; deep (:data:`RECORD_DEPTH`). ``odom`` is in
     the drifting odom frame, ``ground_truth`` and ``amcl_pose`` in map.
-    The demo's local planner publishes ``Twist`` on ``cmd_vel``.
+    The demo's local planner publishes ``TwistStamped`` on ``cmd_vel``.
     """
     from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, Twist
+    from geometry_msgs.msg import PoseStamped, PoseWithCovarianceStamped, TwistStamped
     from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import LaserScan
@@ -857,7 +901,7 @@ def recorded_topics():
             ('odom', Odometry, reliable), ('ground_truth', Odometry, reliable),
             ('amcl_pose', PoseWithCovarianceStamped, latched), ('scan', LaserScan, sensor),
             ('obstacles', MarkerArray, reliable), ('tracks', MarkerArray, reliable),
-            ('cmd_vel', Twist, reliable),
+            ('cmd_vel', TwistStamped, reliable),
             ('goal_pose', PoseStamped, reliable), ('goal_outcome', String, reliable),
             ('/diagnostics', DiagnosticArray, reliable))
 

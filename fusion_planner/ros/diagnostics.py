@@ -126,6 +126,9 @@ class DiagnosticsReporter:
         (status then goes out on events only).
     log_period_s : float
         Rate limit [s] of log lines per reason (see :class:`RateLimitedLogger`).
+    stamp : callable, optional
+        Returns the ``builtin_interfaces/Time`` a status is stamped with;
+        default: the node clock's now.
 
     Notes
     -----
@@ -134,8 +137,9 @@ class DiagnosticsReporter:
     here. All methods are thread-safe.
     """
 
-    def __init__(self, node, period_s=0.0, log_period_s=DEFAULT_LOG_PERIOD_S):
+    def __init__(self, node, period_s=0.0, log_period_s=DEFAULT_LOG_PERIOD_S, stamp=None):
         self._node = node
+        self._stamp = stamp or (lambda: node.get_clock().now().to_msg())
         self._pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC,
                                           DIAGNOSTICS_QUEUE_DEPTH)
         self.log = RateLimitedLogger(node.get_logger(), log_period_s)
@@ -237,7 +241,7 @@ class DiagnosticsReporter:
                 hardware_id=self._node.get_name(),
                 values=[KeyValue(key=k, value=_text(v)) for k, v in self._values.items()])
         msg = DiagnosticArray()
-        msg.header.stamp = self._node.get_clock().now().to_msg()
+        msg.header.stamp = self._stamp()
         msg.status = [status]
         self._pub.publish(msg)
 

@@ -18,13 +18,13 @@ Topics (relative names, so a namespace or a remap applies):
 - ``odom`` with ``pose_topic_type: odometry`` in: odometry that is already
   in ``frame_id`` (a localizer's fused output) as the start pose. ``odom`` is
   subscribed best-effort, which matches reliable and best-effort publishers
-  alike.
+  alike (reliable in lockstep).
 - ``plan`` (nav_msgs/Path, reliable, transient_local) out: the smoothed
   path; an *empty* path when planning for the current goal failed, so a
   follower stops instead of driving an old plan.
 - ``plan_markers`` (visualization_msgs/MarkerArray) out: key nodes, and the
   expanded cells when ``publish_expanded`` is set.
-- ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
+- ``scan`` (sensor_msgs/LaserScan, best effort - reliable in lockstep -, frame ``laser_frame_id``,
   mounted at ``laser_x``, ``laser_y``, ``laser_yaw``; with ``use_tf`` its
   frame and the robot pose come from TF) in, with
   ``mark_obstacles``: obstacles the map does not show are learnt from the
@@ -54,6 +54,20 @@ plan is re-checked against the new map from the robot's position on, and a
 path cell that was traversable and is not any more (or a changed map
 geometry) triggers a new plan.
 
+Lockstep (``lockstep``, set by the demo): the poses and the scan of one
+simulator step are handled together, in a fixed order and on the step's
+stamp (:class:`~fusion_planner.ros.lockstep.StepInputs`); a replan they cause
+happens right there, synchronously, and goes out on ``plan`` with a stamp of
+its own. Every step is then answered on ``plan_stamp``
+(sensor_msgs/TimeReference, reliable: header stamp = the step's, ``time_ref``
+= the stamp of the plan in force, an empty path before any), and the local
+planner in lockstep steers that step with that plan. A plan for a new goal
+or map is made when the goal or map arrives and named by the next answer;
+while the simulator holds the world at t = 0 (``start_paused``) each repeated
+set is answered again. The search's
+``planning_time_limit`` stays a wall-time budget: a search that needs
+longer on a slower machine is the one thing that can change a run.
+
 Goal tolerance (``goal_tolerance`` for ``goal_pose``, the request's
 ``tolerance`` for ``get_plan``): when the goal lies in an obstacle or its
 inflation, the nearest traversable cell centre within the tolerance that is
@@ -61,6 +75,7 @@ connected to the start is used instead (:func:`nearest_free_goal`).
 """
 
 import collections
+import functools
 import math
 from dataclasses import dataclass
 
@@ -72,9 +87,10 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 from rclpy.qos import ReliabilityPolicy
+from rclpy.time import Time
 from scipy import ndimage
 from scipy.spatial import cKDTree
-from sensor_msgs.msg import LaserScan
+from sensor_msgs.msg import LaserScan, TimeReference
 from visualization_msgs.msg import Marker, MarkerArray
 
 from fusion_planner.core import raster
@@ -90,9 +106,11 @@ from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
 from fusion_planner.ros.goal_outcome import (
     CANCEL_SERVICE, CONTROLLER_OUTCOME_TOPIC, GOAL_OUTCOME_TOPIC, controller_outcome_from_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
-from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
+from fusion_planner.ros.qos import LATCHED_QOS, RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros import frames
 from fusion_planner.ros.frames import Localization
+from fusion_planner.ros.lockstep import (
+    PLAN_STAMP_TOPIC, StepInputs, pose_subscription, step_input_qos)
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -151,11 +169,15 @@ class GlobalPlannerParams:
     obstacle_mark_range: float = 3.0
     obstacle_clear_range: float = 4.0
     obstacle_update_period: float = 0.2
+    lockstep: bool = False
     diagnostics_period: float = 1.0
     autostart: bool = True
 
     def __post_init__(self):
         self.planner_config()  # the core validates algorithm, weights, radii
+        if self.lockstep and self.use_tf:
+            raise InvalidInput('lockstep takes the poses and scans of each step from their '
+                               'topics: it cannot be combined with use_tf')
 
     def planner_config(self):
         """The :class:`PlannerConfig` these parameters describe."""
@@ -242,6 +264,11 @@ PARAMETER_SPECS = (
     ParameterSpec('obstacle_update_period', 0.2,
                   'scans closer in time than this to the last one used are skipped [s]',
                   float_range(0.0, 10.0)),
+    ParameterSpec('lockstep', False,
+                  "handle each step's amcl_pose, odom and scan together (one stamp, from a "
+                  'simulator in lockstep), on its stamp, and name the plan in force after each '
+                  'step on plan_stamp, so a local planner in lockstep steers each step with the '
+                  'plan made on it', read_only=True),
     ParameterSpec('diagnostics_period', 1.0,
                   'period of the diagnostics heartbeat; 0 publishes on events only [s]',
                   float_range(0.0, 60.0), read_only=True),
@@ -332,7 +359,10 @@ class GlobalPlannerNode(ManagedNode):
         self._params = ParameterHandler(self, GlobalPlannerParams, PARAMETER_SPECS)
         params = self._params.current
         self._frame_id = params.frame_id
-        self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        # lockstep: the node's time, from 0 on the stamp of the last step's set [ns]
+        self._step_time_ns = 0 if params.lockstep else None
+        self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period,
+                                                stamp=self._now)
         self._diagnostics.update(WARN, 'unconfigured')
         self.start(params.autostart)
 
@@ -355,6 +385,8 @@ class GlobalPlannerNode(ManagedNode):
         self._poses = collections.deque(maxlen=POSE_HISTORY)  # (stamp, pose, velocity)
         self._localization = Localization(POSE_EXTRAPOLATION_S)
         self._last_now = -math.inf  # latest node-clock time seen [s]
+        self._plan_stamp_ns = None  # stamp of the last plan or empty path published [ns]
+        self._waiting_step = None  # lockstep: (stamp [ns], messages) of a step awaiting the map
         self._layer_updated = -math.inf  # node-clock time of the last scan used [s]
 
         guard = self._diagnostics.guard
@@ -369,19 +401,23 @@ class GlobalPlannerNode(ManagedNode):
             self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
                 else frames.make_tf_source(self)
             self.create_timer(TF_POSE_PERIOD_S, guard('tf', self._on_tf_timer))
-        elif params.pose_topic_type == 'odometry':
-            self.create_subscription(Odometry, POSE_TOPICS['odometry'],
-                                     guard('odom', self._on_odometry), ANY_PUBLISHER_QOS)
-        else:
-            self._pose_sub = LatchedOrVolatile(
+        self._input_handlers = self._step_input_handlers(params)
+        handlers = self._input_handlers
+        if params.lockstep:
+            self._plan_stamp_pub = self.create_lifecycle_publisher(
+                TimeReference, PLAN_STAMP_TOPIC, RELIABLE_QOS)
+            self._inputs = StepInputs(handlers, self._on_step_inputs, self._answer_step)
+            handlers = {name: functools.partial(self._inputs.add, name) for name in handlers}
+        if 'odom' in handlers:
+            self.create_subscription(Odometry, 'odom', guard('odom', handlers['odom']),
+                                     step_input_qos(params.lockstep))
+        if 'amcl_pose' in handlers:
+            self._pose_sub = pose_subscription(
                 self, PoseWithCovarianceStamped, POSE_TOPICS['pose_with_covariance'],
-                guard('amcl_pose', self._on_pose_with_covariance), ReliabilityPolicy.BEST_EFFORT)
-            if params.mark_obstacles:
-                self.create_subscription(Odometry, 'odom', guard('odom', self._on_wheel_odometry),
-                                         ANY_PUBLISHER_QOS)
-        if params.mark_obstacles:
-            self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
-                                     ANY_PUBLISHER_QOS)
+                guard('amcl_pose', handlers['amcl_pose']), params.lockstep)
+        if 'scan' in handlers:
+            self.create_subscription(LaserScan, 'scan', guard('scan', handlers['scan']),
+                                     step_input_qos(params.lockstep))
         self.create_service(GetPlan, 'get_plan',
                             guard('get_plan', self._on_get_plan, on_error=self._empty_response))
         self._outcome_pub = self.create_lifecycle_publisher(String, GOAL_OUTCOME_TOPIC,
@@ -403,7 +439,68 @@ class GlobalPlannerNode(ManagedNode):
             self._end_goal('cancelled', 'the node was deactivated')
         self._diagnostics.update(WARN, 'inactive')
 
+    def _step_input_handlers(self, params):
+        """The pose and scan inputs and their callbacks, in the order a lockstep set is handled.
+
+        Odometry first (it places scans between localization poses), the scan
+        last (it is placed with both). None with ``use_tf`` (poses from TF).
+        """
+        handlers = {}
+        from_topics = not params.use_tf  # else the poses come from the TF timer
+        if from_topics and params.pose_topic_type == 'odometry':
+            handlers['odom'] = self._on_odometry
+        elif from_topics:
+            if params.mark_obstacles:
+                handlers['odom'] = self._on_wheel_odometry
+            handlers['amcl_pose'] = self._on_pose_with_covariance
+        if params.mark_obstacles:
+            handlers['scan'] = self._on_scan
+        return handlers
+
     # -- callbacks ------------------------------------------------------------
+
+    def _on_step_inputs(self, stamp_ns, messages):
+        """Lockstep: take a step's set in order on its stamp, then answer with the plan.
+
+        The first step waits for the map (latched, so its arrival time
+        varies): scans count from the same step in every run.
+        """
+        if self._map_msg is None:
+            self._waiting_step = (stamp_ns, messages)
+            return
+        self._waiting_step = None
+        self._step_time_ns = stamp_ns
+        guard = self._diagnostics.guard
+        for name, msg in zip(self._inputs.names, messages):
+            # a refused message is reported and the step goes on without it
+            guard(name, self._input_handlers[name])(msg)
+        self._answer_step(stamp_ns)
+
+    def _answer_step(self, stamp_ns):
+        """Lockstep: name the plan in force (an empty path before any) on ``plan_stamp``."""
+        if self._waiting_step is not None:
+            return  # that step is not handled yet
+        if self._plan_stamp_ns is None:
+            self._publish_plan(self._empty_path())
+        msg = TimeReference(source=self.get_fully_qualified_name())
+        msg.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        msg.time_ref = Time(nanoseconds=self._plan_stamp_ns).to_msg()
+        self._plan_stamp_pub.publish(msg)
+
+    def _publish_plan(self, msg):
+        """Publish a plan or an empty path; in lockstep each with a stamp of its own.
+
+        Two plans of one step (a goal and a map in the same step) are told
+        apart by the later one's stamp being a nanosecond later.
+        """
+        stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
+        if self._params.current.lockstep and self._plan_stamp_ns is not None:
+            stamp_ns = max(stamp_ns, self._plan_stamp_ns + 1)
+            msg.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        self._plan_stamp_ns = stamp_ns
+        if msg.poses:
+            self._goal_plan_stamps.add(stamp_ns)
+        self._plan_pub.publish(msg)
 
     def _on_map(self, msg):
         """Accept a new map; replan when the current plan does not survive it."""
@@ -415,6 +512,8 @@ class GlobalPlannerNode(ManagedNode):
         self.get_logger().info(
             f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted, '
             f'prepared for planning in {prepare_s:.3f} s')
+        if self._waiting_step is not None:
+            self._on_step_inputs(*self._waiting_step)
         if self._goal is None:
             self._diagnostics.update(WARN, 'map accepted; waiting for a goal',
                                      map_cells=msg.info.width * msg.info.height)
@@ -467,7 +566,7 @@ class GlobalPlannerNode(ManagedNode):
         self._waiting = False
         if stop:
             self._plan = None
-            self._plan_pub.publish(self._empty_path())
+            self._publish_plan(self._empty_path())
         self._outcome_pub.publish(String(data=outcome))
         line = f'goal ({goal[0]:.2f}, {goal[1]:.2f}) ended: {outcome}' + (
             f' ({reason})' if reason else '')
@@ -609,15 +708,13 @@ class GlobalPlannerNode(ManagedNode):
         except Exception as err:  # noqa: BLE001 - re-raised below unless a planning outcome
             if not isinstance(err, PlanningError):
                 self._plan = None
-                self._plan_pub.publish(self._empty_path())  # followers stop
+                self._publish_plan(self._empty_path())  # followers stop
                 raise  # a bug: the callback guard logs it and reports a fault
             self._diagnostics.failed(err, trigger)
             self._end_goal('no_path', f'{err.outcome}: {err}')
             return
         self._plan = result.path
-        msg = conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2])
-        self._goal_plan_stamps.add(conv.stamp_to_nanoseconds(msg.header.stamp))
-        self._plan_pub.publish(msg)
+        self._publish_plan(conv.path_to_msg(result.path, self._frame_id, self._now(), goal[2]))
         self._markers_pub.publish(self._markers(result))
         self._report_success(trigger, result, goal, used_goal)
 
@@ -790,11 +887,17 @@ class GlobalPlannerNode(ManagedNode):
         response.plan = self._empty_path()
         return response
 
+    def _now_ns(self):
+        """The node's time [ns]: the node clock's, in lockstep the stamp of the last step."""
+        if self._step_time_ns is not None:
+            return self._step_time_ns
+        return self.get_clock().now().nanoseconds
+
     def _now(self):
-        return self.get_clock().now().to_msg()
+        return Time(nanoseconds=self._now_ns()).to_msg()
 
     def _now_s(self):
-        return self.get_clock().now().nanoseconds * 1e-9
+        return self._now_ns() * 1e-9
 
 
 def _traversable_at(grid, cells, radius):

@@ -15,7 +15,7 @@ Topics (relative names, so a namespace or a remap applies):
   plan": the robot stops. The same plan again (a latched republish) keeps
   the controller's state.
 - ``odom`` (nav_msgs/Odometry, header frame = ``odom_frame_id``, best
-  effort: reliable and best-effort publishers match) in: pose and measured
+  effort: reliable and best-effort publishers match; reliable in lockstep) in: pose and measured
   velocity. The robot is controlled in this frame (REP-105: smooth, but
   drifting). The pose is moved ahead along the measured velocity from its
   stamp to the control step (:func:`~fusion_planner.ros.timed_pose.pose_at`),
@@ -29,7 +29,7 @@ Topics (relative names, so a namespace or a remap applies):
   to the robot pose, scans and obstacles the controller sees, so the plan
   and the controller's state stay put. Until the first pose the robot
   stands still (``no_localization``).
-- ``scan`` (sensor_msgs/LaserScan, best effort, frame ``laser_frame_id``,
+- ``scan`` (sensor_msgs/LaserScan, best effort - reliable in lockstep -, frame ``laser_frame_id``,
   mounted at ``laser_x``, ``laser_y``, ``laser_yaw`` on the robot) in:
   obstacle points, placed in the odom frame with the odometry pose of the
   scan's stamp (:meth:`LocalPlannerNode._on_scan`, the one place where
@@ -73,6 +73,21 @@ Topics (relative names, so a namespace or a remap applies):
 - ``/diagnostics`` out: controller status, arrival, failure with its reason,
   stuck events, stale inputs, step timing.
 
+Lockstep (``lockstep``, set by the demo): instead of a timer, the node
+computes once per complete set of ``odom``, ``amcl_pose``, ``scan``,
+``obstacles`` and ``plan_stamp`` (sensor_msgs/TimeReference) messages with
+one stamp (a simulator and a global planner in lockstep publish one of each
+per step), handled in that order
+(:class:`~fusion_planner.ros.lockstep.StepInputs`), followed by the plan
+``plan_stamp`` names (waited for if it has not arrived yet; so is the
+``map``, before the first step; at t = 0, the world held until a first
+plan, only the inputs are taken), and the node's time is
+that stamp: odometry and scans are never stale, the controller's progress and
+escape timers run on simulated steps, and the TwistStamped command carries
+the stamp the simulator waits for. A run then depends on the messages only,
+not on their arrival order or the machine's speed. Idle, the node is silent
+as usual, and the simulator holds the world until its ``lockstep_timeout``.
+
 Safety policy (DESIGN.md, Errors): the command is exactly zero with no plan,
 on arrival, after a controller failure, when odometry is older than
 ``odom_timeout``, when the plan's publisher has been gone for longer than
@@ -98,7 +113,8 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rclpy.qos import ReliabilityPolicy
-from sensor_msgs.msg import LaserScan
+from rclpy.time import Time
+from sensor_msgs.msg import LaserScan, TimeReference
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
@@ -114,9 +130,11 @@ from fusion_planner.ros.goal_outcome import (
     CONTROLLER_OUTCOME_TOPIC, OUTCOME_OF_STATUS, controller_outcome_msg)
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range, int_range
 from fusion_planner.ros.scan_tracks import ScanTracks, fuse, tracks_to_markers
-from fusion_planner.ros.qos import ANY_PUBLISHER_QOS, RELIABLE_QOS, LatchedOrVolatile
+from fusion_planner.ros.qos import RELIABLE_QOS, LatchedOrVolatile
 from fusion_planner.ros import frames
 from fusion_planner.ros.frames import Localization
+from fusion_planner.ros.lockstep import (
+    MAX_KEPT_PLANS, PLAN_STAMP_TOPIC, StepInputs, pose_subscription, step_input_qos)
 from fusion_planner.ros.timed_pose import pose_at
 from fusion_planner.ros.node_main import run_node
 
@@ -161,6 +179,11 @@ NODE_PARAMETERS = (
      None, True, ()),
     ('use_stamped_twist', False, 'deprecated alias of enable_stamped_cmd_vel: true also '
      'enables it (with a warning)', None, True, ()),
+    ('lockstep', False,
+     'compute on each complete per-step set of odom, amcl_pose, scan, obstacles and '
+     'plan_stamp (one stamp, from a simulator and a global planner in lockstep) instead of on '
+     "a timer, on the set's stamp: a run then does not depend on the machine's speed; needs "
+     'enable_stamped_cmd_vel', None, True, ()),
     ('publish_zero_when_idle', False,
      'keep publishing a zero cmd_vel at control_rate while idle (no plan, or the plan ended); '
      'false: one zero command, then silence', None, False, ()),
@@ -272,6 +295,10 @@ def _check(params):
     if params.controller not in follow.CONTROLLER_NAMES:
         raise InvalidInput(f'controller must be one of {follow.CONTROLLER_NAMES}, '
                            f'got {params.controller!r}')
+    if params.lockstep and not (params.enable_stamped_cmd_vel or params.use_stamped_twist):
+        raise InvalidInput('lockstep needs enable_stamped_cmd_vel: the simulator matches each '
+                           'command to the sensor set it answers by its stamp, which a Twist '
+                           'does not carry')
     params.follower_params()
 
 
@@ -421,7 +448,10 @@ class LocalPlannerNode(ManagedNode):
         params = self._params.current
         self._frame_id = params.frame_id
         self._robot_frame_id = params.robot_frame_id
-        self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period)
+        # lockstep: the node's time, from 0 on the stamp of the set in hand [ns]
+        self._step_time_ns = 0 if params.lockstep else None
+        self._diagnostics = DiagnosticsReporter(self, params.diagnostics_period,
+                                                stamp=self._stamp)
         self._stamped = params.enable_stamped_cmd_vel or params.use_stamped_twist
         if params.use_stamped_twist:
             self.get_logger().warning('use_stamped_twist is deprecated: '
@@ -459,6 +489,9 @@ class LocalPlannerNode(ManagedNode):
         self._step_ms_max = 0.0
         self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
         self._idle_stop_sent = False  # the one zero command of an idle spell went out
+        self._plans = {}  # lockstep: the latest plans by stamp [ns]
+        self._waiting_step = None  # lockstep: (stamp [ns], messages) of a step awaiting its plan
+        self._plan_in_force = None  # lockstep: stamp of the plan last handed over [ns]
 
     def configure(self):
         """Fresh state; the publishers, subscriptions and the control timer."""
@@ -473,24 +506,42 @@ class LocalPlannerNode(ManagedNode):
         self._cmd_pub = self.create_lifecycle_publisher(twist_type, 'cmd_vel', RELIABLE_QOS)
         self._local_plan_pub = self.create_lifecycle_publisher(Path, 'local_plan', RELIABLE_QOS)
         self._tracks_pub = self.create_lifecycle_publisher(MarkerArray, 'tracks', RELIABLE_QOS)
-        self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
+        # Per-step inputs, in the order a lockstep set hands them over: the
+        # odometry first (it places the pose and the scan). The plan comes
+        # last, after the set (see _on_step_inputs).
+        self._input_handlers = {'odom': self._on_odometry, 'amcl_pose': self._on_localization,
+                                'scan': self._on_scan, 'obstacles': self._on_obstacles}
+        if self._localization.same_frame or self._tf is not None:
+            del self._input_handlers['amcl_pose']
+        handlers = dict(self._input_handlers, plan=self._on_plan)
+        if params.lockstep:
+            self._inputs = StepInputs([*self._input_handlers, PLAN_STAMP_TOPIC],
+                                      self._on_step_inputs)
+            handlers = {name: functools.partial(self._inputs.add, name) for name in handlers}
+            handlers['plan'] = self._keep_plan
+            self.create_subscription(TimeReference, PLAN_STAMP_TOPIC, guard(
+                PLAN_STAMP_TOPIC, functools.partial(self._inputs.add, PLAN_STAMP_TOPIC)),
+                RELIABLE_QOS)
+        self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', handlers['plan']),
                                            ReliabilityPolicy.RELIABLE)
-        self.create_subscription(Odometry, 'odom', guard('odom', self._on_odometry),
-                                 ANY_PUBLISHER_QOS)
-        self.create_subscription(LaserScan, 'scan', guard('scan', self._on_scan),
-                                 ANY_PUBLISHER_QOS)
-        self.create_subscription(MarkerArray, 'obstacles', guard('obstacles', self._on_obstacles),
+        sensor_qos = step_input_qos(params.lockstep)
+        self.create_subscription(Odometry, 'odom', guard('odom', handlers['odom']), sensor_qos)
+        self.create_subscription(LaserScan, 'scan', guard('scan', handlers['scan']), sensor_qos)
+        self.create_subscription(MarkerArray, 'obstacles', guard('obstacles',
+                                                                 handlers['obstacles']),
                                  RELIABLE_QOS)
         self._map_sub = LatchedOrVolatile(self, OccupancyGrid, 'map', guard('map', self._on_map),
                                           ReliabilityPolicy.RELIABLE)
-        if not self._localization.same_frame and self._tf is None:
-            self._pose_sub = LatchedOrVolatile(
-                self, PoseWithCovarianceStamped, 'amcl_pose',
-                guard('amcl_pose', self._on_localization), ReliabilityPolicy.BEST_EFFORT)
+        if 'amcl_pose' in handlers:
+            self._pose_sub = pose_subscription(self, PoseWithCovarianceStamped, 'amcl_pose',
+                                               guard('amcl_pose', handlers['amcl_pose']),
+                                               params.lockstep)
         self._outcome_pub = self.create_lifecycle_publisher(
             DiagnosticStatus, CONTROLLER_OUTCOME_TOPIC, RELIABLE_QOS)
-        self._timer = self.create_timer(1.0 / params.control_rate,
-                                        guard('control', self._on_timer, on_error=self._on_fault))
+        if not params.lockstep:
+            self._timer = self.create_timer(
+                1.0 / params.control_rate, guard('control', self._on_timer,
+                                                 on_error=self._on_fault))
         self._diagnostics.update(WARN, 'waiting for a plan', status='no_path', arrived=False,
                                  stuck_events=0, controller=params.controller)
 
@@ -539,6 +590,8 @@ class LocalPlannerNode(ManagedNode):
         with self._lock:
             self._replanner = GridReplanner(grid, config)
             self._scan_tracks.set_map(grid)
+        if self._waiting_step is not None:  # lockstep: a step that waited for the map
+            self._on_step_inputs(*self._waiting_step)
 
     def _replan(self, start, goal, obstacle_points):
         """The controller's replanner: the map plus the scanned obstacles (see GridReplanner).
@@ -663,6 +716,42 @@ class LocalPlannerNode(ManagedNode):
             self._diagnostics.reject(
                 'obstacles',
                 InvalidInput(f'{len(rejected)} marker(s) refused, first: {rejected[0]}'))
+
+    def _keep_plan(self, msg):
+        """Lockstep: keep a plan until a step names it; run the step that waited for it."""
+        self._plans[conv.stamp_to_nanoseconds(msg.header.stamp)] = msg
+        while len(self._plans) > MAX_KEPT_PLANS:
+            del self._plans[min(self._plans)]
+        if self._waiting_step is not None:
+            self._on_step_inputs(*self._waiting_step)
+
+    def _on_step_inputs(self, stamp_ns, messages):
+        """Lockstep: take a step's set in order, the plan it names, then run one control step.
+
+        The set ends with the global planner's ``plan_stamp``: the stamp of the
+        plan in force after that step. The step waits here until that plan has
+        arrived on ``plan`` (another topic, so possibly later), and until the
+        map has (latched, so its arrival time varies; the scan tracker and
+        the replanner work on it).
+        """
+        plan_stamp = conv.stamp_to_nanoseconds(messages[-1].time_ref)
+        if plan_stamp not in self._plans or self._replanner is None:
+            self._waiting_step = (stamp_ns, messages)
+            return
+        self._waiting_step = None
+        self._step_time_ns = stamp_ns
+        guard = self._diagnostics.guard
+        for name, msg in zip(self._inputs.names, messages[:-1]):
+            # a refused message is reported and the step goes on without it
+            guard(name, self._input_handlers[name])(msg)
+        if stamp_ns == 0:
+            # The world held at t = 0 until the first plan: which plan the
+            # global planner named first then depends on when the goal came.
+            return
+        if plan_stamp != self._plan_in_force:
+            self._plan_in_force = plan_stamp
+            guard('plan', self._on_plan)(self._plans[plan_stamp])
+        guard('control', self._on_timer, on_error=self._on_fault)()
 
     def _on_parameters_changed(self, old, new):
         """Apply an accepted run-time parameter change."""
@@ -889,11 +978,17 @@ class LocalPlannerNode(ManagedNode):
         self._level, self._message = level, message
         self._diagnostics.update(level, message, **values)
 
+    def _now_ns(self):
+        """The node's time [ns]: the node clock's, in lockstep the stamp of the set in hand."""
+        if self._step_time_ns is not None:
+            return self._step_time_ns
+        return self.get_clock().now().nanoseconds
+
     def _now_s(self):
-        return self.get_clock().now().nanoseconds / conv.NS_PER_S
+        return self._now_ns() / conv.NS_PER_S
 
     def _stamp(self):
-        return self.get_clock().now().to_msg()
+        return Time(nanoseconds=self._now_ns()).to_msg()
 
 
 def main(args=None):

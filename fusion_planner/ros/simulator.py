@@ -11,14 +11,28 @@ clock, whatever ``use_sim_time`` says); it is an upper bound:
 
 - with ``sync_with_controller`` (default), once velocity commands flow a
   step waits while the last command is older than ``max_command_lag`` of
-  simulated time, so a controller starved of CPU is not outrun (``0`` is
-  lockstep: one step per command; the demo and tests use it, with the
-  controller's rate equal to ``rate``). A controller silent for
+  simulated time, so a controller starved of CPU is not outrun (``0``: one
+  step per command, with the controller's rate equal to ``rate``; which
+  sensor data a command answers still depends on DDS timing). A controller silent for
   :data:`COMMAND_WAIT_LIMIT_S` of wall time is taken for gone: the world runs
   on and the robot stops after ``cmd_timeout``;
+- with ``lockstep`` (the demo sets it; default off) the run no longer
+  depends on the machine's speed: every step publishes the whole sensor set
+  (odometry, ground truth, ``amcl_pose``, TF, scan, obstacles - a lone
+  DELETEALL marker without moving obstacles -, clock; the ``scan_rate`` and
+  ``localization_rate`` are not used), all stamped with the
+  step's simulated time, and the next step waits until a ``cmd_vel``
+  TwistStamped with that stamp (the local planner's answer to that set,
+  see :mod:`fusion_planner.ros.lockstep`) has arrived, then goes ahead as
+  soon as ``real_time_factor`` allows. A plain Twist cannot be matched to a
+  step: it is an error on diagnostics and the log, and the world runs free
+  (on the wall clock). A step not answered within ``lockstep_timeout`` of
+  wall time is reported and the world runs free until the controller answers
+  a step again, so nothing ever hangs;
 - with ``start_paused`` the world stays at t = 0 (sensors and clock still
   published) until the first plan appears, so moving obstacles do not
-  wander off before the robot can start and every run starts alike.
+  wander off before the robot can start and every run starts alike. The
+  sensor set of t = 0 is computed once and republished unchanged.
 
 Topics (relative names, so a namespace or a remap applies):
 
@@ -40,7 +54,7 @@ Topics (relative names, so a namespace or a remap applies):
   install): ``odom_frame_id`` -> ``robot_frame_id`` every step and
   ``frame_id`` -> ``odom_frame_id`` (the localizer's estimate) with each
   ``amcl_pose``.
-- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, frame
+- ``scan`` (sensor_msgs/LaserScan, sensor-data QoS - reliable in lockstep -, frame
   ``robot_frame_id``) out at ``scan_rate``: the world's ray-cast scan
   (REP-117: ``+inf`` no return, ``-inf`` too close).
 - ``obstacles`` (visualization_msgs/MarkerArray) out with each scan: one
@@ -96,7 +110,7 @@ from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.scenario import load_scenario
 from fusion_planner.core.simulation.world import World
 from fusion_planner.ros import conversions as conv
-from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
+from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
 from fusion_planner.ros.frames import map_from_odom
 from fusion_planner.ros.robot_sensors import DriftingOdometry, NoisyLocalizer
@@ -133,6 +147,17 @@ PAUSED_PUBLISH_PERIOD_S = 0.1
 #: Wall time a subscriber must have been matched before the goal is sent [s]
 #: (gives the subscriber's side of discovery time to match us back).
 GOAL_MATCH_SETTLE_S = 0.3
+#: Longest wall period of the lockstep simulator's timer [s] (see
+#: SimulatorNode._make_step_timer).
+LOCKSTEP_POLL_S = 0.05
+#: Ticks of the lockstep pace timer per step's wall time [1]: a command that
+#: came early steps the world at most 1/PACE_TICKS_PER_STEP of a step late.
+PACE_TICKS_PER_STEP = 4
+#: The error of a lockstep simulator that receives an unstamped command.
+UNSTAMPED_PROBLEM = (
+    'lockstep needs stamped velocity commands: cmd_vel carries geometry_msgs/Twist, which '
+    'cannot be matched to a step; set enable_stamped_cmd_vel on the controller (TwistStamped '
+    'stamped with the sensor data it answers). Running free on the wall clock')
 
 
 @dataclass(frozen=True)
@@ -157,6 +182,8 @@ class SimulatorParams:
     publish_goal: bool = False
     start_paused: bool = False
     enable_stamped_cmd_vel: bool = False
+    lockstep: bool = False
+    lockstep_timeout: float = 5.0
     diagnostics_period: float = 1.0
     autostart: bool = True
 
@@ -205,7 +232,8 @@ PARAMETER_SPECS = (
     ParameterSpec('max_command_lag', 0.25,
                   'largest age of the last command, in simulated time, at which a step goes '
                   "ahead with sync_with_controller; keep it at least the controller's period; "
-                  '0 is lockstep: one step per command (controller rate = rate) [s]',
+                  '0: one step per command (controller rate = rate; for a run that repeats '
+                  'exactly, use lockstep) [s]',
                   float_range(0.0, 60.0)),
     ParameterSpec('publish_goal', False,
                   "publish the scenario's goal on goal_pose once a subscriber is matched"),
@@ -216,6 +244,15 @@ PARAMETER_SPECS = (
     ParameterSpec('enable_stamped_cmd_vel', False,
                   'subscribe cmd_vel as TwistStamped at start-up (Twist otherwise); either way the '
                   'node then follows the type of the cmd_vel publishers it finds', read_only=True),
+    ParameterSpec('lockstep', False,
+                  'publish the whole sensor set every step and step on only when the cmd_vel '
+                  "TwistStamped stamped with that set's time has arrived: the same scenario "
+                  'gives the same run at any real_time_factor (needs stamped commands)',
+                  read_only=True),
+    ParameterSpec('lockstep_timeout', 5.0,
+                  'with lockstep: wall time a step waits for its command before the world runs '
+                  'free (reported) until the controller answers a step again [s]',
+                  float_range(0.01, 600.0)),
     ParameterSpec('diagnostics_period', 1.0, 'wall period of the diagnostics status [s]',
                   float_range(0.05, 60.0), read_only=True),
     ParameterSpec('autostart', True, AUTOSTART_DESCRIPTION, read_only=True),
@@ -380,6 +417,12 @@ class SimulatorNode(ManagedNode):
         self._commands_flow = False  # a controller is sending commands (see max_command_lag)
         self._waiting_since = None   # wall time the simulation began waiting for one [s]
         self._next_scan_time = 0.0
+        # lockstep state
+        self._lockstep_engaged = params.lockstep  # steps wait for their command
+        self._step_answered = True  # the command answering the current step has arrived
+        self._step_published_wall = -math.inf  # wall time the current step went out [s]
+        self._lockstep_problem = ''  # why the world runs free despite lockstep ('' none)
+        self._held_messages = None  # the sensor set of t = 0 while held
         self.min_clearance = self.world.clearance()
         self.distance_travelled = 0.0
         self._rtf_mark = (time.monotonic(), 0.0)  # (wall, sim) at the last status
@@ -399,18 +442,21 @@ class SimulatorNode(ManagedNode):
         self._truth_pub = publisher(Odometry, 'ground_truth', RELIABLE_QOS)
         self._localization_pub = publisher(PoseWithCovarianceStamped, 'amcl_pose', LATCHED_QOS)
         self._tf_pub = publisher(TFMessage, '/tf', RELIABLE_QOS) if TFMessage else None
-        self._scan_pub = publisher(LaserScan, 'scan', SENSOR_QOS)
+        # lockstep: a lost scan would leave its step unanswered
+        self._scan_pub = publisher(LaserScan, 'scan', RELIABLE_QOS if params.lockstep
+                                   else SENSOR_QOS)
         self._obstacles_pub = publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
         self._clock_pub = publisher(ClockMsg, 'clock', RELIABLE_QOS)
         self._goal_pub = publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
         self._cmd_vel_sub = self.create_subscription(
             TwistStamped if params.enable_stamped_cmd_vel else Twist, 'cmd_vel',
-            guard('cmd_vel', self._on_cmd_vel), RELIABLE_QOS)
+            guard('cmd_vel', self._on_cmd_vel_then_step), RELIABLE_QOS)
         self._plan_sub = LatchedOrVolatile(self, Path, 'plan', guard('plan', self._on_plan),
                                            ReliabilityPolicy.RELIABLE)
         self.create_timer(CMD_VEL_TYPE_CHECK_PERIOD_S,
                           guard('cmd_vel type', self._match_cmd_vel_type), clock=self._steady)
         self._step_timer = self._make_step_timer(params)
+        self._pace_timer = self._make_pace_timer(params)  # lockstep: an early answer's step
         self.create_timer(GOAL_CHECK_PERIOD_S, guard('goal', self._on_goal_timer),
                           clock=self._steady)
         self.create_timer(params.diagnostics_period, guard('status', self._publish_status),
@@ -433,6 +479,7 @@ class SimulatorNode(ManagedNode):
     def cleanup(self):
         """The timers went with the other entities."""
         self._step_timer = None
+        self._pace_timer = None
 
     # -- inputs ---------------------------------------------------------------
 
@@ -441,6 +488,8 @@ class SimulatorNode(ManagedNode):
         robot = self.scenario.robot
         self._command_time = self.world.time
         self._commands_flow = True
+        if self._params.current.lockstep:
+            self._note_step_answer(msg)
         try:
             v, omega = conv.twist_to_velocity(msg, 'cmd_vel')
             if abs(v) > MAX_COMMAND_FACTOR * robot.max_speed \
@@ -453,6 +502,37 @@ class SimulatorNode(ManagedNode):
             self._command = (0.0, 0.0)  # refused: the robot stops for this command
             raise
         self._command = (v, omega)
+
+    def _on_cmd_vel_then_step(self, msg):
+        """Take a command; in lockstep, step when it answers the step (and the pace allows)."""
+        try:
+            self._on_cmd_vel(msg)
+        finally:
+            params = self._params.current
+            if params.lockstep and self._lockstep_engaged and self.active \
+                    and self._step_answered and not self._paused:
+                self._step_when_due(params)
+
+    def _note_step_answer(self, msg):
+        """Lockstep: whether ``msg`` answers the current step (its stamp is the step's)."""
+        if not hasattr(msg, 'header'):
+            if self._lockstep_problem != UNSTAMPED_PROBLEM:
+                self._lockstep_problem = UNSTAMPED_PROBLEM
+                self.get_logger().error(UNSTAMPED_PROBLEM)
+                self._diagnostics.update(ERROR, UNSTAMPED_PROBLEM, lockstep='off')
+            self._set_engaged(False)
+            return
+        if conv.stamp_to_nanoseconds(msg.header.stamp) != self._step_stamp_ns():
+            return  # the answer to an earlier step (after a timeout): applied, not matched
+        self._step_answered = True
+        if not self._lockstep_engaged:
+            self._set_engaged(True)
+            self._lockstep_problem = ''
+            self.get_logger().info('lockstep: the controller answers the steps again')
+
+    def _step_stamp_ns(self):
+        """Stamp of the current step's sensor set [ns]."""
+        return conv.stamp_to_nanoseconds(conv.seconds_to_stamp(self.world.time))
 
     def _match_cmd_vel_type(self):
         """Subscribe ``cmd_vel`` with the message type its publishers use."""
@@ -467,7 +547,7 @@ class SimulatorNode(ManagedNode):
             return
         self.destroy_subscription(self._cmd_vel_sub)
         self._cmd_vel_sub = self.create_subscription(
-            known[0], 'cmd_vel', self._diagnostics.guard('cmd_vel', self._on_cmd_vel),
+            known[0], 'cmd_vel', self._diagnostics.guard('cmd_vel', self._on_cmd_vel_then_step),
             RELIABLE_QOS)
         self.get_logger().info(f'cmd_vel is published as {known[0].__name__}: listening to that')
 
@@ -478,12 +558,18 @@ class SimulatorNode(ManagedNode):
             self._goal_answered = True
         if self._paused and path is not None:
             self._paused = False
+            self._command = (0.0, 0.0)  # the first step leaves the robot at rest
+            self._step_answered = True
+            if self._params.current.lockstep:
+                self._step_when_due(self._params.current)
             self.get_logger().info('first plan received: the world starts moving')
 
     def _on_parameters_changed(self, old, new):
         if new.real_time_factor != old.real_time_factor and self._step_timer is not None:
             self.destroy_timer(self._step_timer)
             self._step_timer = self._make_step_timer(new)
+            self.destroy_timer(self._pace_timer)
+            self._pace_timer = self._make_pace_timer(new)
         self.get_logger().info(f'parameters changed: real_time_factor={new.real_time_factor:g}, '
                                f'scan_rate={new.scan_rate:g} Hz, '
                                f'cmd_timeout={new.cmd_timeout:g} s, '
@@ -491,25 +577,60 @@ class SimulatorNode(ManagedNode):
 
     # -- simulation -------------------------------------------------------------
 
+    def _wall_period(self, params):
+        """Wall time of one step at ``real_time_factor`` [s]."""
+        return self._dt / params.real_time_factor
+
     def _make_step_timer(self, params):
-        wall_period = self._dt / params.real_time_factor
-        return self.create_timer(wall_period, self._diagnostics.guard('step', self.step),
+        """The timer that steps a free-running world; in lockstep it only watches.
+
+        In lockstep the commands step the world (:meth:`_step_when_due`): the
+        timer publishes the held world and notices an unanswered step, at
+        most every :data:`LOCKSTEP_POLL_S`.
+        """
+        period = self._wall_period(params)
+        if params.lockstep and self._lockstep_engaged:
+            period = max(period, LOCKSTEP_POLL_S)
+        return self.create_timer(period,
+                                 self._diagnostics.guard('step', self._on_step_timer),
                                  clock=self._steady)
 
-    def step(self):
-        """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+    def _make_pace_timer(self, params):
+        """A timer of a fraction of a step's wall time, cancelled until an early answer."""
+        timer = self.create_timer(self._wall_period(params) / PACE_TICKS_PER_STEP,
+                                  self._diagnostics.guard('step', self._on_pace_timer),
+                                  clock=self._steady)
+        timer.cancel()
+        return timer
+
+    def _on_step_timer(self):
+        """Step when the world may move: not held, not waiting for the controller."""
         if not self.active:
             return
         params = self._params.current
-        world = self.world
         if self._paused:
             now = time.monotonic()
             if now - self._paused_published >= PAUSED_PUBLISH_PERIOD_S:
                 self._paused_published = now
-                self._publish_sensors(params, force_scan=True)
+                if self._held_messages is None:
+                    self._held_messages = self._sensor_messages(params, force_scan=True)
+                self._publish(self._held_messages)
             return
-        if self._command_late(params):
+        if params.lockstep and self._lockstep_engaged:
+            if self._step_answered:  # the first step; the others follow their commands
+                self._step_when_due(params)
+                return
+            self._check_step_timeout(params)
+            if self._lockstep_engaged:
+                return
+        elif not params.lockstep and self._command_late(params):
             return
+        self.step()
+
+    def step(self):
+        """Advance the world by one step and publish clock, odometry and (when due) the scan."""
+        params = self._params.current
+        world = self.world
         v, omega = self._command
         if world.time - self._command_time > params.cmd_timeout:
             v = omega = 0.0
@@ -525,37 +646,93 @@ class SimulatorNode(ManagedNode):
                 f'collision (contact event {world.contact_events}) at t = {world.time:.2f} s')
         self.distance_travelled += float(np.hypot(*(world.pose[:2] - before)))
         self.min_clearance = min(self.min_clearance, world.clearance())
-        self._publish_sensors(params)
+        self._step_answered = False
+        self._step_published_wall = time.monotonic()
+        self._publish(self._sensor_messages(params))
 
-    def _publish_sensors(self, params, force_scan=False):
-        """Publish odometry, the scan and obstacles when due, then the clock."""
+    def _publish(self, messages):
+        for publisher, msg in messages:
+            publisher.publish(msg)
+
+    def _sensor_messages(self, params, force_scan=False):
+        """``(publisher, message)`` of a step: odometry, scan and obstacles when due, clock.
+
+        In lockstep the localization pose and the scan are due every step.
+        """
         world = self.world
         stamp = conv.seconds_to_stamp(world.time)
         # Sensors first, the clock last: a node whose timer wakes on the new
         # time has (most likely) already received the data of that time.
         odometry = self._odometry_model
-        self._odom_pub.publish(odometry_msg(odometry.pose, odometry.velocity, self._odom_frame_id,
-                                            self._robot_frame_id, stamp))
-        self._truth_pub.publish(odometry_msg(world.pose, world.velocity, self._frame_id,
-                                             self._robot_frame_id, stamp))
+        messages = [
+            (self._odom_pub, odometry_msg(odometry.pose, odometry.velocity, self._odom_frame_id,
+                                          self._robot_frame_id, stamp)),
+            (self._truth_pub, odometry_msg(world.pose, world.velocity, self._frame_id,
+                                           self._robot_frame_id, stamp))]
         transforms = [(self._odom_frame_id, odometry.pose)]
-        if world.time + TIME_EPS_S >= self._next_localization_time:
+        if params.lockstep or world.time + TIME_EPS_S >= self._next_localization_time:
             self._next_localization_time = world.time + 1.0 / params.localization_rate
             estimate = self._localizer.estimate(world.pose)
-            self._localization_pub.publish(self._localization_msg(estimate, stamp))
+            messages.append((self._localization_pub, self._localization_msg(estimate, stamp)))
             transforms.append((self._frame_id, map_from_odom(estimate, odometry.pose)))
         if self._tf_pub is not None:
-            self._tf_pub.publish(self._tf_msg(transforms, stamp))
-        if force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
-            period = 1.0 / params.scan_rate
+            messages.append((self._tf_pub, self._tf_msg(transforms, stamp)))
+        if params.lockstep or force_scan or world.time + TIME_EPS_S >= self._next_scan_time:
+            period = self._dt if params.lockstep else 1.0 / params.scan_rate
             self._next_scan_time = world.time + period
-            self._scan_pub.publish(scan_to_msg(world.scan(), self.scenario.scan,
-                                               self._robot_frame_id, stamp, period))
+            messages.append((self._scan_pub, scan_to_msg(world.scan(), self.scenario.scan,
+                                                         self._robot_frame_id, stamp, period)))
             tracked = world.tracked_obstacles()
             if len(tracked):
-                self._obstacles_pub.publish(conv.obstacles_to_markers(
-                    tracked, self._frame_id, stamp, ns='moving_obstacles'))
-        self._clock_pub.publish(ClockMsg(clock=stamp))
+                messages.append((self._obstacles_pub, conv.obstacles_to_markers(
+                    tracked, self._frame_id, stamp, ns='moving_obstacles')))
+            elif params.lockstep:  # every step has its set: "no moving obstacles", stamped
+                messages.append((self._obstacles_pub, MarkerArray(
+                    markers=[conv.delete_all_marker(self._frame_id, stamp)])))
+        messages.append((self._clock_pub, ClockMsg(clock=stamp)))
+        return messages
+
+    def _check_step_timeout(self, params):
+        """Lockstep: run free (reported) when the current step waited too long for its command."""
+        if self._step_answered \
+                or time.monotonic() - self._step_published_wall < params.lockstep_timeout:
+            return
+        self._set_engaged(False)
+        self._lockstep_problem = (
+            f'lockstep: no cmd_vel stamped {self.world.time:.3f} s (the sensor set it answers) '
+            f'within {params.lockstep_timeout:g} s of wall time: running free until the '
+            'controller answers a step again (the robot stops after cmd_timeout)')
+        self.get_logger().warning(self._lockstep_problem)
+        self._diagnostics.update(WARN, self._lockstep_problem, lockstep='timed out')
+
+    def _set_engaged(self, engaged):
+        """Lockstep: whether the steps wait for their commands; the step timer follows."""
+        if engaged == self._lockstep_engaged:
+            return
+        self._lockstep_engaged = engaged
+        if self._step_timer is not None:
+            self.destroy_timer(self._step_timer)
+            self._step_timer = self._make_step_timer(self._params.current)
+
+    def _step_due(self, params):
+        """Whether a step's wall time at ``real_time_factor`` has passed since the last one."""
+        return time.monotonic() >= self._step_published_wall + self._wall_period(params)
+
+    def _step_when_due(self, params):
+        """Lockstep, the step answered: step now, or when its wall time has come."""
+        if self._step_due(params):
+            self.step()
+        elif self._pace_timer.is_canceled():
+            self._pace_timer.reset()
+
+    def _on_pace_timer(self):
+        """Step an early-answered step once its wall time has come."""
+        params = self._params.current
+        if not self._step_due(params):
+            return
+        self._pace_timer.cancel()
+        if self.active and self._step_answered and not self._paused:
+            self.step()
 
     def _command_late(self, params):
         """Whether this step waits for the controller's next command (see max_command_lag)."""
@@ -637,9 +814,14 @@ class SimulatorNode(ManagedNode):
             self._rtf = (sim - self._rtf_mark[1]) / (wall - self._rtf_mark[0])
         self._rtf_mark = (wall, sim)
         collisions = world.contact_events
+        level = OK if collisions == 0 and not self._lockstep_problem else WARN
+        if self._lockstep_problem == UNSTAMPED_PROBLEM:
+            level = ERROR
+        lockstep = 'off' if not self._params.current.lockstep \
+            else 'on' if self._lockstep_engaged else self._lockstep_problem
         self._diagnostics.update(
-            OK if collisions == 0 else WARN,
-            f'{collisions} collision(s), t = {sim:.1f} s',
+            level, f'{collisions} collision(s), t = {sim:.1f} s',
+            lockstep=lockstep,
             collisions=collisions, sim_time_s=sim, min_clearance_m=self.min_clearance,
             distance_travelled_m=self.distance_travelled,
             distance_to_goal_m=float(np.hypot(*(world.pose[:2] - self._goal))),
