@@ -188,7 +188,14 @@ class ObstacleLayer:
         """Sorted unique flat indices of the cells holding ``points`` that lie in the grid."""
         cells = self.grid.cell_of(points) if len(points) else np.empty((0, 2), np.int64)
         cells = cells[self.grid.contains(cells)]
-        return np.unique(np.ravel_multi_index((cells[:, 0], cells[:, 1]), self.grid.shape))
+        flat = cells[:, 0] * self.grid.width + cells[:, 1]
+        if not len(flat):
+            return flat
+        # a mask over the span of the indices sorts and dedups in one pass (np.unique sorts)
+        low = flat.min()
+        mask = np.zeros(flat.max() - low + 1, dtype=bool)
+        mask[flat - low] = True
+        return np.flatnonzero(mask) + low
 
     def _marked_cells(self, origin, returns):
         """Cells of the returns within ``mark_range`` that the map does not explain."""
@@ -214,13 +221,13 @@ class ObstacleLayer:
         reach = np.minimum(np.where(hit, length - self.grid.resolution / 2, length),
                            self.clear_range)
         counts = np.maximum(np.floor(reach / step).astype(np.int64) + 1, 0)
-        counts[reach < 0] = 0
+        counts[(reach < 0) | (length == 0)] = 0  # a beam of length zero has no direction
         beam = np.repeat(np.arange(len(ends)), counts)
         if not len(beam):
             return np.empty(0, dtype=np.int64)
         first = np.cumsum(counts) - counts
         along = (np.arange(len(beam)) - first[beam]) * step
-        with np.errstate(invalid='ignore', divide='ignore'):
-            unit = offset / length[:, None]
+        unit = np.divide(offset, length[:, None], out=np.zeros_like(offset),
+                         where=length[:, None] > 0)
         samples = origin + unit[beam] * along[:, None]
-        return self._flat_inside(samples[np.all(np.isfinite(samples), axis=1)])
+        return self._flat_inside(samples)
