@@ -47,6 +47,7 @@ from fusion_planner.core.local_planning.controller_base import (
 from fusion_planner.core.errors import (
     GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
+from fusion_planner.core.local_planning.free_arc import free_arc_speed
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
     thin_points)
@@ -140,6 +141,7 @@ class _Scene:
     field_weights: np.ndarray     # (M',)
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
+    tentative: np.ndarray         # (T, 5) finite tentative movers, the same
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
                                   # (not measured for a route follower)
     repelling: tuple = None       # route followers: (points, velocities, weights) that repel
@@ -278,9 +280,7 @@ class FieldFollower(ControllerBase):
         points = obs.obstacle_points
         if len(points) and not np.all(np.isfinite(points)):
             points = points[np.all(np.isfinite(points), axis=1)]
-        tracked = obs.tracked
-        if len(tracked) and not np.all(np.isfinite(tracked)):
-            tracked = tracked[np.all(np.isfinite(tracked), axis=1)]
+        tracked, tentative = _finite_rows(obs.tracked), _finite_rows(obs.tentative)
         thinned = thin_points(points, p.point_spacing)
         if len(thinned):
             # only points within rho0 of the robot or of its rollout exert a force
@@ -291,7 +291,7 @@ class FieldFollower(ControllerBase):
         return _Scene(field_points=np.vstack([thinned, surface]),
                       field_velocities=np.vstack([np.zeros_like(thinned), velocities]),
                       field_weights=np.concatenate([np.ones(len(thinned)), weights]),
-                      all_points=points, tracked=tracked,
+                      all_points=points, tracked=tracked, tentative=tentative,
                       nearest_ahead=(math.inf if self._route is not None  # braking path instead
                                      else self._nearest_ahead(obs.pose, thinned, tracked)))
 
@@ -877,15 +877,39 @@ class FieldFollower(ControllerBase):
         return self._steer(math.atan2(direction[1], direction[0]), v_cap, obs)
 
     def _evade(self, obs, scene, command, desired):
-        """``command`` within the limits, or an evasive one if it runs into a tracked obstacle.
+        """``command`` within the limits, or an evasive one if it runs into a moving obstacle.
 
-        Only with prediction (see :mod:`fusion_planner.core.local_planning.evasion`);
-        ``desired`` (2,) is the direction the controller wants to go.
+        Only with prediction (see :mod:`fusion_planner.core.local_planning.evasion`),
+        against the tracked obstacles and the tentative movers (a person
+        not yet confirmed as moving is still checked against where it
+        walks); ``desired`` (2,) is the direction the controller wants to go.
         """
-        if not self.predict or len(scene.tracked) == 0:
-            return self._limit(command[0], command[1], obs)
+        movers = np.vstack([scene.tracked, scene.tentative])
+        if not self.predict or len(movers) == 0:
+            return self._limit(self._on_free_arc(obs, scene, *command), command[1], obs)
         norm = math.hypot(desired[0], desired[1])
         desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
-        v, w, _ = evasion.evade(obs.pose, obs.velocity, command, desired, scene.tracked,
+        v, w, _ = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
                                 scene.all_points, self.params)
-        return self._limit(v, w, obs, v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
+        return self._limit(self._on_free_arc(obs, scene, v, w), w, obs,
+                           v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
+
+    def _on_free_arc(self, obs, scene, v, omega):
+        """A route follower's speed ``v`` [m/s] bounded so that it can stop on its arc.
+
+        Whatever the route following made of the scan points (beside the
+        route, a person not yet tracked), the robot must be able to stop
+        on the arc of ``(v, omega)`` clear of every one of them
+        (:func:`~fusion_planner.core.local_planning.free_arc.free_arc_speed`).
+        The field followers of the paper go unchecked.
+        """
+        if self._route is None:
+            return v
+        return free_arc_speed(obs.pose, v, omega, scene.all_points, self.params)
+
+
+def _finite_rows(rows):
+    """The rows of ``rows`` (N, C) without a non-finite entry."""
+    if len(rows) and not np.all(np.isfinite(rows)):
+        return rows[np.all(np.isfinite(rows), axis=1)]
+    return rows

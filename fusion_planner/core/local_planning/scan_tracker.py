@@ -22,15 +22,23 @@ controller avoids (:attr:`Observation.tracked`):
    ``coast_time``, is dropped.
 5. **Report**: only tracks that move. A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
-   it was born, and its speed is at least ``min_speed``; it stays moving
-   until its speed falls below half of that, and must then travel
-   ``min_travel`` again. A static object's centre estimate shifts as the
+   it was born, and its speed is at least ``min_speed``. It stays moving until its speed has been below
+   half of ``min_speed`` for ``stop_time`` (a person turning round passes
+   through zero speed), and must then travel again. A static object's centre estimate shifts as the
    view changes, so a track also stops moving while most of its returns
    fall in cells hit without a break for ``static_age`` (:mod:`hit_ages`),
    unless it has gone farther than ``max_object_radius`` from where it first
    appeared (no change of view moves a centre that far; a slow person keeps
    hitting the same cells for a while). Everything else (static unknown
    obstacles, people standing still) stays scan points.
+6. **Tentative movers**: tracks matched ``confirm_hits`` times that are not
+   (yet) moving, whose returns do not stay put, and whose estimated speed
+   is at least ``min_speed``, reported apart
+   (:attr:`TrackReport.tentative`): a person who has just stepped out from
+   behind a corner has a usable velocity estimate long before it has
+   travelled ``min_travel``, while a static object's estimate may wander
+   for a second as the view changes. A controller checks its commands
+   against them without treating them as people.
 
 Deterministic: the same scans give the same tracks (no randomness; ties in
 the assignment are broken by index). Vectorised over beams, candidates and
@@ -66,6 +74,7 @@ Examples
 """
 
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -117,6 +126,9 @@ class TrackerParams:
         Slowest speed [m/s] of a moving track.
     min_travel : float
         Distance [m] from its birth a track must have travelled to be moving.
+    stop_time : float
+        A moving track stops moving once its speed has been below half of
+        ``min_speed`` for this long [s].
     radius_smoothing : float
         Weight in (0, 1] of a new radius in a track's running mean.
     static_age : float
@@ -142,6 +154,7 @@ class TrackerParams:
     coast_time: float = 0.6
     min_speed: float = 0.1
     min_travel: float = 0.25
+    stop_time: float = 0.5
     radius_smoothing: float = 0.3
     static_age: float = 1.0
     hit_break: float = 0.3
@@ -152,7 +165,7 @@ class TrackerParams:
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
                      'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
             _check_real(name, getattr(self, name), zero_ok=False)
-        for name in ('min_speed', 'min_travel'):
+        for name in ('min_speed', 'min_travel', 'stop_time'):
             _check_real(name, getattr(self, name), zero_ok=True)
         for name in ('min_points', 'confirm_hits', 'max_tracks'):
             value = getattr(self, name)
@@ -202,12 +215,16 @@ class TrackReport:
     radii : ndarray, float64, shape (K,)
         [m]: a running mean of the radii of the whole (not partly hidden)
         candidates matched to each track.
+    tentative : ndarray, float64, shape (T, 5)
+        ``x, y, vx, vy, radius`` of the tentative movers (module notes,
+        step 6), same frame and units.
     """
 
     ids: np.ndarray
     states: np.ndarray
     covariances: np.ndarray
     radii: np.ndarray
+    tentative: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 5)))
 
     @property
     def tracked(self):
@@ -247,6 +264,8 @@ class ScanTracker:
         self._birth = np.zeros((0, 2))     # where each track must travel min_travel from [m]
         self._origin = np.zeros((0, 2))    # where each track first appeared [m]
         self._moving = np.zeros(0, bool)
+        self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
+        self._stays = np.zeros(0, bool)    # its returns stayed in old cells at its last match
 
     def update(self, angles, ranges, origin, time):
         """Take in one scan.
@@ -292,6 +311,7 @@ class ScanTracker:
         self._last_seen[track_of[matched & occluded]] = self.time
         # an object whose returns stay in the same cells is not moving, whatever
         # its centre estimate does as the view changes; it must travel again
+        self._stays[track_of[matched]] = staying[matched]
         still = track_of[matched & staying]
         still = still[np.hypot(*(self._x[still, 0:2] - self._origin[still]).T)
                       <= p.max_object_radius]
@@ -305,7 +325,7 @@ class ScanTracker:
         return ScanVerdict(True, note)
 
     def report(self, time=None):
-        """The moving tracks, optionally predicted ahead.
+        """The moving tracks and the tentative movers, optionally predicted ahead.
 
         Parameters
         ----------
@@ -317,12 +337,19 @@ class ScanTracker:
         -------
         TrackReport
         """
+        p = self.params
         keep = self._moving
-        states = self._x[keep].copy()
+        ahead = 0.0
         if time is not None and self.time is not None and math.isfinite(time):
-            states[:, 0:2] += states[:, 2:4] * (time - self.time)
-        return TrackReport(ids=self._ids[keep].copy(), states=states,
-                           covariances=self._p[keep].copy(), radii=self._radius[keep].copy())
+            ahead = time - self.time
+        states = self._x.copy()
+        states[:, 0:2] += states[:, 2:4] * ahead
+        tentative = (~keep & ~self._stays & (self._hits >= p.confirm_hits)
+                     & (np.hypot(states[:, 2], states[:, 3]) >= p.min_speed))
+        return TrackReport(ids=self._ids[keep].copy(), states=states[keep],
+                           covariances=self._p[keep].copy(), radii=self._radius[keep].copy(),
+                           tentative=np.column_stack([states[tentative],
+                                                      self._radius[tentative]]).reshape(-1, 5))
 
     @property
     def live_tracks(self):
@@ -420,6 +447,8 @@ class ScanTracker:
         self._birth = np.concatenate([self._birth, centers])
         self._origin = np.concatenate([self._origin, centers])
         self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
+        self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
+        self._stays = np.concatenate([self._stays, np.zeros(n, bool)])
 
     def _mark_moving(self):
         p = self.params
@@ -427,8 +456,10 @@ class ScanTracker:
         travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
         starts = ((self._hits >= p.confirm_hits) & (travelled >= p.min_travel)
                   & (speed >= p.min_speed))
-        stops = self._moving & (speed < 0.5 * p.min_speed)
-        # a stopped track must travel min_travel again from where it stopped
+        slow = speed < 0.5 * p.min_speed
+        self._slow_since = np.where(slow, np.minimum(self._slow_since, self.time), np.inf)
+        stops = self._moving & slow & (self.time - self._slow_since >= p.stop_time)
+        # a stopped track must travel again from where it stopped
         self._birth[stops] = self._x[stops, 0:2]
         self._moving = (self._moving & ~stops) | starts
 
@@ -438,6 +469,8 @@ class ScanTracker:
         self._last_seen, self._birth = self._last_seen[mask], self._birth[mask]
         self._origin = self._origin[mask]
         self._moving = self._moving[mask]
+        self._slow_since = self._slow_since[mask]
+        self._stays = self._stays[mask]
 
 
 def _checked_scan(angles, ranges, origin, time):

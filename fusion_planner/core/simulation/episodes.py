@@ -357,9 +357,10 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     steps = 0
     for _ in range(max_steps):
         scan = world.scan()
+        tracked = perceive.tracked(world, scan)
         obs = follow.Observation(pose=world.pose.copy(), velocity=world.velocity.copy(),
-                                 obstacle_points=scan.points, tracked=perceive.tracked(world, scan),
-                                 time=world.time)
+                                 obstacle_points=scan.points, tracked=tracked,
+                                 time=world.time, tentative=perceive.tentative)
         command = controller.compute(obs)
         if record:
             trajectory.append(world.pose.copy())
