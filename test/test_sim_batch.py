@@ -37,10 +37,6 @@ def test_fusion_batch_reaches_98_percent(fusion_batch):
     assert fusion.success_rate >= 0.98, fusion.failures
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    'known defect: in random-2651666590 a slow walker is not yet a moving track, its '
-    'scan points count as static points beside the route, which do not repel, and the '
-    'robot turns into it (docs/ALGORITHM.md, "Where fusion still falls short")'))
 def test_fusion_batch_has_no_collisions(fusion_batch):
     assert fusion_batch.controllers['fusion'].collisions == 0, [
         e for e in fusion_batch.episodes if e['collisions']]

@@ -12,8 +12,14 @@ controller avoids (:attr:`Observation.tracked`):
    predicted to the scan's time.
 3. **Association**: the squared Mahalanobis distance of each candidate to
    each predicted track, gated at ``gate`` (chi-square, 2 degrees of
-   freedom) and at ``max_gate_distance``; one-to-one by the Hungarian method
-   (:func:`scipy.optimize.linear_sum_assignment`).
+   freedom), at ``max_gate_distance``, and by size: a whole candidate more
+   than ``size_ratio`` times larger or smaller than a confirmed track is a
+   merge (a person beside a box or another person) or a split (two who
+   walked together part) and is not that track's object; one-to-one by
+   the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`).
+   Correcting a track with the centre of a merge would swing its velocity
+   the wrong way; the track coasts instead, and the candidate starts a
+   track of its own.
 4. **Update, birth, death**: matched tracks are corrected, except by a
    partly hidden candidate (a nearer return beside it: its centre is
    biased), which only keeps its track alive; unmatched whole candidates
@@ -118,6 +124,9 @@ class TrackerParams:
         of a 2-D Gaussian).
     max_gate_distance : float
         Largest distance [m] of an association, whatever the covariance.
+    size_ratio : float
+        Largest ratio (> 1) of a whole candidate's radius to a confirmed
+        track's, either way, that still associates.
     confirm_hits : int
         Matches before a track may be reported.
     coast_time : float
@@ -150,6 +159,7 @@ class TrackerParams:
     initial_speed_std: float = 1.5
     gate: float = 13.8
     max_gate_distance: float = 1.0
+    size_ratio: float = 1.6
     confirm_hits: int = 3
     coast_time: float = 0.6
     min_speed: float = 0.1
@@ -163,6 +173,7 @@ class TrackerParams:
     def __post_init__(self):
         for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
+                     'size_ratio',
                      'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
             _check_real(name, getattr(self, name), zero_ok=False)
         for name in ('min_speed', 'min_travel', 'stop_time'):
@@ -172,6 +183,8 @@ class TrackerParams:
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InvalidInput(
                     f'TrackerParams.{name} must be a positive integer, got {value!r}')
+        if not self.size_ratio > 1.0:
+            raise InvalidInput(f'TrackerParams.size_ratio must be > 1, got {self.size_ratio!r}')
 
 
 def _check_real(name, value, zero_ok):
@@ -303,7 +316,7 @@ class ScanTracker:
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
         occluded, staying = segments.occluded[objects], staying[objects]
-        track_of = self._associate(centers)
+        track_of = self._associate(centers, np.where(occluded, np.nan, radii))
         matched = track_of >= 0
         whole = matched & ~occluded
         self._correct(track_of[whole], centers[whole], radii[whole])
@@ -385,17 +398,26 @@ class ScanTracker:
         self._x = self._x @ f.T
         self._p = f @ self._p @ f.T + noise
 
-    def _associate(self, centers):
-        """Track index of each candidate (-1: none), by gated Hungarian assignment."""
+    def _associate(self, centers, radii):
+        """Track index of each candidate (-1: none), by gated Hungarian assignment.
+
+        ``radii`` (C,) [m] are the candidates' radii, NaN for partly hidden
+        ones (their size says nothing).
+        """
         track_of = np.full(len(centers), -1, np.int64)
         if not len(centers) or not len(self._x):
             return track_of
+        p = self.params
         innovation = centers[None, :, :] - self._x[:, None, 0:2]            # (K, C, 2)
         s = self._p[:, 0:2, 0:2] + self._measurement_cov                     # (K, 2, 2)
         s_inv = np.linalg.inv(s)
         mahalanobis = np.einsum('kci,kij,kcj->kc', innovation, s_inv, innovation)
         distance = np.hypot(innovation[..., 0], innovation[..., 1])
-        allowed = (mahalanobis <= self.params.gate) & (distance <= self.params.max_gate_distance)
+        ratio = radii[None, :] / self._radius[:, None]                          # (K, C)
+        with np.errstate(invalid='ignore'):  # NaN: a partly hidden candidate, any size
+            resized = (ratio > p.size_ratio) | (ratio < 1.0 / p.size_ratio)
+        resized &= (self._hits >= p.confirm_hits)[:, None]
+        allowed = (mahalanobis <= p.gate) & (distance <= p.max_gate_distance) & ~resized
         cost = np.where(allowed, mahalanobis, FORBIDDEN_COST)
         rows, cols = linear_sum_assignment(cost)
         ok = allowed[rows, cols]
