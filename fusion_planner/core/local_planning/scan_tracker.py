@@ -28,11 +28,14 @@ controller avoids (:attr:`Observation.tracked`):
    ``coast_time``, is dropped.
 5. **Report**: only tracks that move. A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
-   it was born, and its speed is at least ``min_speed``. It stays moving until its speed has been below
-   half of ``min_speed`` for ``stop_time`` (a person turning round passes
-   through zero speed), and must then travel again. A static object's centre estimate shifts as the
-   view changes, so a track also stops moving while most of its returns
-   fall in cells hit without a break for ``static_age`` (:mod:`hit_ages`),
+   it was born, and its speed is at least ``min_speed``. It stays moving
+   until its speed has been below half of ``min_speed`` for ``stop_time``
+   (a person turning round passes
+   through zero speed), and must then travel again. A static object's
+   centre estimate shifts as the view changes, so a track also stops moving
+   once most of its returns have fallen in cells hit without a break for
+   ``static_age`` (:mod:`hit_ages`) for ``stop_time`` (a person turning
+   round walks back over the cells it has just hit),
    unless it has gone farther than ``max_object_radius`` from where it first
    appeared (no change of view moves a centre that far; a slow person keeps
    hitting the same cells for a while). Everything else (static unknown
@@ -137,7 +140,8 @@ class TrackerParams:
         Distance [m] from its birth a track must have travelled to be moving.
     stop_time : float
         A moving track stops moving once its speed has been below half of
-        ``min_speed`` for this long [s].
+        ``min_speed``, or its returns in old cells (see ``static_age``), for
+        this long [s].
     radius_smoothing : float
         Weight in (0, 1] of a new radius in a track's running mean.
     static_age : float
@@ -279,6 +283,7 @@ class ScanTracker:
         self._moving = np.zeros(0, bool)
         self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
         self._stays = np.zeros(0, bool)    # its returns stayed in old cells at its last match
+        self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
 
     def update(self, angles, ranges, origin, time):
         """Take in one scan.
@@ -325,7 +330,11 @@ class ScanTracker:
         # an object whose returns stay in the same cells is not moving, whatever
         # its centre estimate does as the view changes; it must travel again
         self._stays[track_of[matched]] = staying[matched]
+        since = self._staying_since[track_of[matched]]
+        self._staying_since[track_of[matched]] = np.where(staying[matched],
+                                                          np.minimum(since, self.time), np.inf)
         still = track_of[matched & staying]
+        still = still[self.time - self._staying_since[still] >= p.stop_time]
         still = still[np.hypot(*(self._x[still, 0:2] - self._origin[still]).T)
                       <= p.max_object_radius]
         self._moving[still] = False
@@ -471,6 +480,7 @@ class ScanTracker:
         self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
         self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
         self._stays = np.concatenate([self._stays, np.zeros(n, bool)])
+        self._staying_since = np.concatenate([self._staying_since, np.full(n, np.inf)])
 
     def _mark_moving(self):
         p = self.params
@@ -493,6 +503,7 @@ class ScanTracker:
         self._moving = self._moving[mask]
         self._slow_since = self._slow_since[mask]
         self._stays = self._stays[mask]
+        self._staying_since = self._staying_since[mask]
 
 
 def _checked_scan(angles, ranges, origin, time):
