@@ -19,8 +19,11 @@ prediction of tracked obstacles and escape from local minima. Each step
    escaping (see :mod:`fusion_planner.core.local_planning.escape`);
 4. the *command*: heading control under the speed caps (adaptive step of
    eq. (18), approach, braking), then, with prediction, the evasion check of
-   :mod:`fusion_planner.core.local_planning.evasion`, then the velocity and acceleration
-   limits.
+   :mod:`fusion_planner.core.local_planning.evasion` (against the tracked
+   obstacles and the tentative movers), then, for a route follower, the
+   free-arc check of :mod:`fusion_planner.core.local_planning.free_arc`
+   (unless the evasion replaced the command), then the velocity and
+   acceleration limits.
 
 Examples
 --------
