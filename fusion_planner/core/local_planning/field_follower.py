@@ -892,11 +892,10 @@ class FieldFollower(ControllerBase):
             return self._limit(self._on_free_arc(obs, scene, *command), command[1], obs)
         norm = math.hypot(desired[0], desired[1])
         desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
-        v, w, evading = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
-                                      scene.all_points, self.params)
-        if not evading:  # an evasive command was checked against the static points already
-            v = self._on_free_arc(obs, scene, v, w)
-        return self._limit(v, w, obs, v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
+        v, w, _ = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
+                                scene.all_points, self.params)
+        return self._limit(self._on_free_arc(obs, scene, v, w), w, obs,
+                           v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
 
     def _on_free_arc(self, obs, scene, v, omega):
         """A route follower's speed ``v`` [m/s] bounded so that it can stop on its arc.
@@ -905,10 +904,7 @@ class FieldFollower(ControllerBase):
         route, a person not yet tracked), the robot must be able to stop
         on the arc of ``(v, omega)`` clear of every one of them
         (:func:`~fusion_planner.core.local_planning.free_arc.free_arc_speed`).
-        The field followers of the paper go unchecked, and so do evasive
-        commands: the evasion check rolls them out against the static
-        points itself, and backing away from a person along a wall must
-        not be slowed further.
+        The field followers of the paper go unchecked.
         """
         if self._route is None:
             return v
