@@ -8,7 +8,8 @@ import pytest
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.controller_base import FollowerParams, Observation
 from fusion_planner.core.local_planning.follow import make_controller
-from fusion_planner.core.local_planning.free_arc import arc_points, free_arc_speed, stopping_distance
+from fusion_planner.core.local_planning.free_arc import (
+    arc_points, free_arc_speed, free_arc_turn, stopping_distance)
 
 PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
 
@@ -62,6 +63,16 @@ def test_reversing_is_checked_behind_and_turning_in_place_is_left_alone():
     assert closest_on_stop(pose, v, 0.0, behind) >= PARAMS.safety_distance - 1e-9
     assert free_arc_speed(pose, 0.0, 2.0, behind, PARAMS) == 0.0
     assert free_arc_speed(pose, 0.7, 0.0, np.zeros((0, 2)), PARAMS) == 0.7
+
+
+def test_a_robot_too_fast_to_stop_on_its_arc_is_steered_to_a_free_one():
+    pose = np.array([0.0, 0.0, 0.0])
+    wall = line([-1.0, 0.35], [3.0, 0.35])                       # 0.15 m to the left
+    assert free_arc_speed(pose, 1.0, 1.5, wall, PARAMS) < 1.0     # it wants to turn into it
+    omega = free_arc_turn(pose, 1.0, (0.5, 1.5), 1.5, wall, PARAMS)
+    assert 0.5 <= omega < 1.5
+    assert free_arc_speed(pose, 1.0, omega, wall, PARAMS) == 1.0
+    assert free_arc_turn(pose, 1.0, (-0.5, 0.5), 0.3, wall, PARAMS) == pytest.approx(0.3)
 
 
 def test_a_person_not_yet_tracked_as_moving_is_evaded_by_fusion():

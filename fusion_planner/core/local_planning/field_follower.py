@@ -20,10 +20,10 @@ prediction of tracked obstacles and escape from local minima. Each step
 4. the *command*: heading control under the speed caps (adaptive step of
    eq. (18), approach, braking), then, with prediction, the evasion check of
    :mod:`fusion_planner.core.local_planning.evasion` (against the tracked
-   obstacles and the tentative movers), then, for a route follower, the
-   free-arc check of :mod:`fusion_planner.core.local_planning.free_arc`
-   (unless the evasion replaced the command), then the velocity and
-   acceleration limits.
+   obstacles and the tentative movers), then the velocity and acceleration
+   limits, then, for a route follower, the free-arc check of
+   :mod:`fusion_planner.core.local_planning.free_arc` on the command as
+   limited.
 
 Examples
 --------
@@ -50,7 +50,7 @@ from fusion_planner.core.local_planning.controller_base import (
 from fusion_planner.core.errors import (
     GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
-from fusion_planner.core.local_planning.free_arc import free_arc_speed
+from fusion_planner.core.local_planning.free_arc import free_arc_speed, free_arc_turn
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
     thin_points)
@@ -886,29 +886,43 @@ class FieldFollower(ControllerBase):
         against the tracked obstacles and the tentative movers (a person
         not yet confirmed as moving is still checked against where it
         walks); ``desired`` (2,) is the direction the controller wants to go.
+        Then, for a route follower, the free-arc check (:meth:`_on_free_arc`).
         """
         movers = np.vstack([scene.tracked, scene.tentative])
-        if not self.predict or len(movers) == 0:
-            return self._limit(self._on_free_arc(obs, scene, *command), command[1], obs)
-        norm = math.hypot(desired[0], desired[1])
-        desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
-        v, w, _ = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
-                                scene.all_points, self.params)
-        return self._limit(self._on_free_arc(obs, scene, v, w), w, obs,
-                           v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
+        v_min = 0.0
+        if self.predict and len(movers):
+            norm = math.hypot(desired[0], desired[1])
+            desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
+            command = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
+                                    scene.all_points, self.params)[:2]
+            v_min = -evasion.REVERSE_FRACTION * self.params.max_speed
+        v, omega = self._limit(command[0], command[1], obs, v_min=v_min)
+        return self._on_free_arc(obs, scene, v, omega, v_min)
 
-    def _on_free_arc(self, obs, scene, v, omega):
-        """A route follower's speed ``v`` [m/s] bounded so that it can stop on its arc.
+    def _on_free_arc(self, obs, scene, v, omega, v_min):
+        """A route follower's command ``(v, omega)``, slowed so that it can stop on its arc.
 
         Whatever the route following made of the scan points (beside the
         route, a person not yet tracked), the robot must be able to stop
-        on the arc of ``(v, omega)`` clear of every one of them
-        (:func:`~fusion_planner.core.local_planning.free_arc.free_arc_speed`).
-        The field followers of the paper go unchecked.
+        on the arc of the command it will drive (within the limits) clear
+        of every one of them
+        (:func:`~fusion_planner.core.local_planning.free_arc.free_arc_speed`),
+        as far as ``max_accel`` lets it brake now; when that is not enough,
+        the turn rate (within ``max_alpha``) is chosen for a free arc. The
+        field followers of the paper go unchecked.
         """
         if self._route is None:
-            return v
-        return free_arc_speed(obs.pose, v, omega, scene.all_points, self.params)
+            return v, omega
+        p = self.params
+        safe = free_arc_speed(obs.pose, v, omega, scene.all_points, p)
+        if safe == v:
+            return v, omega
+        reachable, _ = self._limit(safe, omega, obs, v_min=v_min)
+        if abs(reachable) > abs(safe):  # it cannot brake enough on this arc: steer for a free one
+            w0, dw = obs.velocity[1], p.max_alpha * p.control_period
+            turns = (max(w0 - dw, -p.max_omega), min(w0 + dw, p.max_omega))
+            omega = free_arc_turn(obs.pose, reachable, turns, omega, scene.all_points, p)
+        return self._limit(safe, omega, obs, v_min=v_min)
 
 
 def _finite_rows(rows):

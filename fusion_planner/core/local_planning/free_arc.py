@@ -57,6 +57,9 @@ SAMPLE_SPACING = 0.02
 #: Curvatures [1/m] below this are straight lines.
 STRAIGHT_CURVATURE = 1e-6
 
+#: Turn rates tried by :func:`free_arc_turn` across the range it is given.
+TURN_SAMPLES = 9
+
 
 def stopping_distance(speed, params):
     """Distance [m] to stop from ``speed`` [m/s] at ``max_accel``, plus one period's travel."""
@@ -119,3 +122,39 @@ def free_arc_speed(pose, v, omega, points, params):
     gaps = tree.query(positions.reshape(-1, 2))[0].reshape(lengths.shape) - p.robot_radius
     free = np.all(gaps >= required, axis=1)
     return float(speeds[np.argmax(free)]) if np.any(free) else 0.0
+
+
+def free_arc_turn(pose, v, turns, omega, points, params):
+    """The turn rate, among ``turns``, on whose arc the robot at speed ``v`` can stop clear.
+
+    For a robot that cannot brake enough to stop on the arc it wants
+    (:func:`free_arc_speed` asks for less than it can reach this step):
+    steering may still leave it a free arc.
+
+    Parameters
+    ----------
+    pose : ndarray, shape (3,)
+    v : float
+        The speed it will have [m/s].
+    turns : tuple of float
+        ``(low, high)`` [rad/s]: the turn rates it can reach this step.
+    omega : float
+        The turn rate it wants [rad/s].
+    points : ndarray, shape (M, 2)
+    params : FollowerParams
+
+    Returns
+    -------
+    float
+        Of :data:`TURN_SAMPLES` turn rates across ``turns`` (and
+        ``omega`` clipped to them), the one nearest ``omega`` whose arc is
+        free at ``v``, or, when none is, the one that allows the highest
+        speed [rad/s].
+    """
+    candidates = np.append(np.linspace(turns[0], turns[1], TURN_SAMPLES),
+                           min(max(omega, turns[0]), turns[1]))
+    allowed = np.array([abs(free_arc_speed(pose, v, w, points, params)) for w in candidates])
+    free = allowed >= abs(v)
+    if np.any(free):
+        return float(candidates[free][np.argmin(np.abs(candidates[free] - omega))])
+    return float(candidates[np.argmax(allowed)])
