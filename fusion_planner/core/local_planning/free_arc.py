@@ -10,6 +10,10 @@ that speed, can stop within it without coming closer than ``safety_distance`` to
 any scan point, whatever the point is (a wall, an unknown box, a person not
 yet tracked as moving).
 
+When the robot cannot brake to that speed within one control period,
+:func:`free_arc_turn` picks, among the turn rates it can reach, one whose
+arc it can stop on.
+
 Stopping on the arc is a manoeuvre the robot can always make: braking at
 ``max_accel`` while the turn rate falls in proportion to the speed keeps the
 curvature. The stopping distance from speed ``u`` is
