@@ -1,11 +1,8 @@
-"""Scan perception in the closed loop: dynamic families, hidden people, contacts at rest."""
-
-import dataclasses
+"""Scan perception in the closed loop: dynamic families, hidden people, passive contacts."""
 
 import numpy as np
 import pytest
 
-from fusion_planner.bench.dynamic import contacts_at_rest
 from fusion_planner.bench.tracker import TrackingStats
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.hit_ages import HitAges
@@ -15,7 +12,8 @@ from fusion_planner.core.simulation.families import FAMILIES, family_scenario
 from fusion_planner.core.simulation.episodes import run_episode
 from fusion_planner.core.simulation.perception import (
     IdealPerception, ScanPerception, make_perception)
-from fusion_planner.core.simulation.world import World
+from fusion_planner.core.grid import GridMap
+from fusion_planner.core.simulation.world import BounceMotion, MovingObstacle, RobotSpec, World
 
 
 @pytest.mark.parametrize('family', sorted(DYNAMIC_FAMILIES))
@@ -83,26 +81,22 @@ def test_hit_ages_grow_on_a_wall_and_stay_young_on_a_walker():
     assert walker_age[0] < 0.3
 
 
-def test_contacts_at_rest_are_told_apart_from_contacts_while_driving():
-    scenario = DYNAMIC_FAMILIES['crossing'](1)
-    scenario = dataclasses.replace(scenario, moving_obstacles=scenario.moving_obstacles[:1])
-    radius = scenario.moving_obstacles[0].radius + scenario.robot.radius
-    poses = np.zeros((12, 3))
-    # at rest, driving on (+x), backing away (-x) from a person ahead, then
-    # driving across (+x, a little away) in front of a person coming from the side (+y)
-    poses[:, 0] = [0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.3, 0.2, 0.1, 0.1, 0.2, 0.3]
-    poses[:, 1] = [0.0] * 10 + [-0.02, -0.04]
-    people = np.array([[5.0, 0.0], [radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
-                       [0.2 + radius - 0.01, 0.0], [5.0, 0.0], [5.0, 0.0],
-                       [5.0, 0.0], [0.1 + radius - 0.01, 0.0], [5.0, 0.0],
-                       [0.2, radius - 0.03], [5.0, 0.0]])[:, None, :]
-
-    @dataclasses.dataclass
-    class Recorded:
-        trajectory: np.ndarray
-        obstacle_tracks: np.ndarray
-
-    assert contacts_at_rest(scenario, Recorded(poses, people)) == 2
+@pytest.mark.parametrize('robot_v, person_vx, passive', [
+    (0.0, -0.6, True),      # standing: the person walks into it
+    (-0.3, -0.6, True),     # backing away from a faster person
+    (0.5, 0.0, False),      # driving into a person standing in the way
+    (0.3, -0.6, False),     # driving on at a person walking at it
+])
+def test_contacts_with_people_are_passive_only_when_the_robot_stood_or_retreated(
+        robot_v, person_vx, passive):
+    grid = GridMap(np.zeros((40, 80), bool), resolution=0.1)
+    person = MovingObstacle(0.3, BounceMotion((3.0, 2.0), (person_vx, 0.0)))
+    world = World(grid, RobotSpec(radius=0.2, max_accel=10.0), np.array([2.0, 2.0, 0.0]),
+                  moving_obstacles=[person])
+    while world.contact_events == 0 and world.time < 5.0:
+        world.step(robot_v, 0.0, 0.05)
+    assert world.contact_events == world.moving_contact_events == 1
+    assert world.passive_contact_events == int(passive)
 
 
 def test_tracking_stats_pair_tracks_with_the_truth_and_time_the_delay():

@@ -204,3 +204,69 @@ def test_bad_parameters_are_refused():
         TrackerParams(gate=-1.0)
     with pytest.raises(InvalidInput, match='confirm_hits'):
         TrackerParams(confirm_hits=0)
+    with pytest.raises(InvalidInput, match='size_ratio'):
+        TrackerParams(size_ratio=1.0)
+    with pytest.raises(InvalidInput, match='stop_time'):
+        TrackerParams(stop_time=-0.1)
+
+
+def test_a_slow_walker_is_a_tentative_mover_before_it_has_travelled_far_enough():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(12) * DT
+    walker = np.stack([np.full_like(t, 6.0), 9.0 + 0.3 * t], axis=1)[:, None, :]
+    reports = run(ScanTracker(grid), grid, origin, walker)
+    # 0.3 m/s: min_travel (0.25 m) takes 0.8 s; the velocity is usable before
+    early = next(k for k, r in enumerate(reports) if len(r.tentative))
+    assert len(reports[early].ids) == 0 and early * DT < 0.8
+    x, y, vx, vy, radius = reports[early].tentative[0]
+    assert math.hypot(x - walker[early, 0, 0], y - walker[early, 0, 1]) < 0.15
+    assert vy > 0.1 and radius > 0.1
+    moving = next(k for k, r in enumerate(reports) if len(r.ids))
+    assert moving > early and len(reports[moving].tentative) == 0
+
+
+def test_static_unknown_obstacles_are_not_tentative_movers_for_long():
+    grid = open_map()
+    circles = [Circle((8.0, 8.5), 0.3), Circle((9.0, 12.0), 0.25), Circle((12.0, 10.0), 0.4)]
+    tracker = ScanTracker(grid)
+    tentative = []
+    for k in range(80):
+        origin = np.array([2.0 + 0.1 * k, 10.0, 0.0])
+        world = World(grid, RobotSpec(radius=0.1), origin, unknown_obstacles=circles,
+                      scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
+        tracker.update(ANGLES, world.scan().ranges, origin, k * DT)
+        tentative.append(len(tracker.report().tentative))
+    # once the hit ages show the returns stay put (static_age, 1 s), nothing is tentative
+    assert sum(tentative[20:]) == 0
+
+
+def test_a_walker_turning_round_stays_reported():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(40) * DT
+    # walks up at 0.4 m/s for 2 s, then back down: its speed passes through zero
+    y = np.where(t < 2.0, 8.0 + 0.4 * t, 8.8 - 0.4 * (t - 2.0))
+    walker = np.stack([np.full_like(t, 7.0), y], axis=1)[:, None, :]
+    reports = run(ScanTracker(grid), grid, origin, walker)
+    first = next(k for k, r in enumerate(reports) if len(r.ids))
+    assert first * DT < 2.0
+    assert all(len(r.ids) == 1 for r in reports[first:]), [len(r.ids) for r in reports]
+    assert reports[-1].states[0, 3] < -0.2
+
+
+def test_walkers_who_part_do_not_swing_a_track_the_wrong_way():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(40) * DT
+    # side by side (touching) up to 1.5 s, then one turns off to the right (+x)
+    left = np.stack([np.full_like(t, 8.0), 8.0 + 0.6 * t], axis=1)
+    right_x = np.where(t < 1.5, 8.6, 8.6 + 0.8 * (t - 1.5))
+    right = np.stack([right_x, 8.0 + 0.6 * np.minimum(t, 1.5)], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, np.stack([left, right], axis=1))
+    for k, report in enumerate(reports[16:], start=16):
+        for (x, y, vx, vy) in report.states:
+            # every reported velocity is one of the two walkers', never a swing between them
+            near_left = math.hypot(x - left[k, 0], y - left[k, 1]) < 0.3
+            truth = (0.0, 0.6) if near_left else (0.8, 0.0)
+            assert math.hypot(vx - truth[0], vy - truth[1]) < 0.5, (k, report.states)

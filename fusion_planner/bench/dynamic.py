@@ -11,12 +11,12 @@ Notes
 -----
 - Scenario seeds are ``batch_seeds(N, seed)`` of each family: a new
   ``--seed`` gives scenarios the controller was never tuned on.
-- **Avoidable contacts**: every contact with a static obstacle, and every
-  contact with a moving obstacle except those that began while the robot
-  stood still (slower than :data:`AT_REST_MPS`) or was retreating from that
-  obstacle (moving within 60 degrees of straight away from it): then the
-  person walked into the robot (people here ignore it), which the robot
-  could not prevent by its own motion (passive safety: a robot in motion is
+- **Avoidable contacts**: every contact event that is not *passive* (a
+  moving obstacle walking into a robot that stood still or retreated from
+  it; :class:`~fusion_planner.core.simulation.world.World` tells them apart
+  as each contact begins, see its module notes): then the person walked
+  into the robot (people here ignore it), which the robot could not
+  prevent by its own motion (passive safety: a robot in motion is
   responsible for its contacts, one at rest or retreating is not). A robot
   driving across a person's way is in motion, not retreating.
 """
@@ -39,46 +39,10 @@ from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 EXIT_OK = 0
 #: The scenario families whose difficulty includes moving obstacles.
 MOVING_FAMILIES = ('mixed', 'corridors') + tuple(DYNAMIC_FAMILIES)
-#: Below this speed [m/s] the robot is at rest when a contact begins.
-AT_REST_MPS = 0.05
-#: A robot whose velocity points within 60 degrees of straight away from an
-#: obstacle (closing speed at most this times its speed) retreats from it.
-RETREAT_COSINE = -0.5
 #: Default scenarios per family and batch seed; quick mode's scenarios.
 DEFAULT_SCENARIOS = 50
 DEFAULT_SEED = 101
 QUICK_SCENARIOS = 1
-
-
-def contacts_at_rest(scenario, result):
-    """Contacts with moving obstacles that began while the robot stood still or retreated.
-
-    Parameters
-    ----------
-    scenario : Scenario
-    result : EpisodeResult
-        Recorded (``record=True``).
-
-    Returns
-    -------
-    int
-    """
-    poses, centres = result.trajectory, result.obstacle_tracks
-    if len(poses) < 2 or centres.shape[1] == 0:
-        return 0
-    radii = np.array([m.radius for m in scenario.moving_obstacles])
-    gaps = np.hypot(*(centres - poses[:, None, 0:2]).transpose(2, 0, 1)) - radii
-    overlap = (gaps < scenario.robot.radius).any(axis=1)
-    begins = np.flatnonzero(overlap[1:] & ~overlap[:-1]) + 1
-    velocity = (poses[begins, 0:2] - poses[begins - 1, 0:2]) / scenario.limits.dt
-    touched = centres[begins, np.argmin(gaps[begins], axis=1)]           # (B, 2)
-    towards = touched - poses[begins, 0:2]
-    closing = np.einsum('ij,ij->i', velocity, towards) / np.maximum(
-        np.hypot(*towards.T), 1e-9)
-    speed = np.hypot(*velocity.T)
-    at_rest = speed < AT_REST_MPS
-    retreating = closing <= RETREAT_COSINE * speed
-    return int(np.sum(at_rest | retreating))
 
 
 def run_one(family, scenario_seed):
@@ -86,11 +50,10 @@ def run_one(family, scenario_seed):
     scenario = family_scenario(family, scenario_seed)
     rows = []
     for mode in PERCEPTION_MODES:
-        result = run_episode(scenario, 'fusion', record=True, perception=mode)
-        at_rest = contacts_at_rest(scenario, result)
+        result = run_episode(scenario, 'fusion', record=False, perception=mode)
         rows.append({'family': family, 'perception': mode, 'scenario': scenario.name,
                      'reached': bool(result.reached), 'collisions': result.collisions,
-                     'avoidable': max(result.collisions - at_rest, 0),
+                     'avoidable': result.collisions - result.passive_collisions,
                      'time_s': float(result.time_s), 'failure': result.failure})
     return rows
 

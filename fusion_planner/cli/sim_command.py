@@ -31,6 +31,8 @@ Contract:
   (null or ``'<outcome>: <sentence>'``) plus ``scenario``, ``family``,
   ``solvable``, ``controller``, ``perception``, ``seed``, ``plan_length_m``,
   ``moving_collisions`` (the contacts a moving obstacle began),
+  ``passive_collisions`` (those of them begun while the robot stood or
+  retreated),
   ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s`` and
   ``time_ratio``. A batch: ``scenarios``, ``family``, ``seed``,
   ``wall_time_s``, ``controllers`` (per controller the fields of
@@ -230,7 +232,8 @@ def batch_table(batch, wall_time=False):
     wall_time : bool
         Add a column with each controller's wall time [s].
     """
-    header = ['controller', 'perception', 'success (solvable)', 'outcomes', 'contacts (episodes; by moving)',
+    header = ['controller', 'perception', 'success (solvable)', 'outcomes',
+              'contacts (episodes; by moving; avoidable)',
               'runs with stuck', 'time / optimal', 'path / optimal', 'mean min clearance [m]',
               'no_path (unsolvable)', 'max proof-to-end [s]']
     if wall_time:
@@ -244,7 +247,8 @@ def batch_table(batch, wall_time=False):
     for s in summaries:
         cells = [s.controller, s.perception, _rate(s.success_on_solvable, s.solvable_reached, s.solvable_episodes),
                  _outcomes(s.outcomes),
-                 f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions})',
+                 f'{s.collisions} ({s.episodes_with_collisions}; {s.moving_collisions}; '
+                 f'{s.avoidable_collisions})',
                  _percent(s.stuck_run_fraction), _num(s.mean_time_ratio),
                  _num(s.path_length_over_optimal, digits=3), _num(s.mean_min_clearance_m),
                  _rate(s.no_path_fraction, round(s.no_path_fraction * s.unsolvable_episodes),

@@ -802,8 +802,11 @@ class LocalPlannerNode(ManagedNode):
             scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
             points = np.zeros((0, 2)) if self._scan is None \
                 else frames.transform_points(drift, self._scan[0])
-            obs = follow.Observation(pose=pose, velocity=velocity, obstacle_points=points,
-                                     tracked=self._tracked_in_plan_frame(now), time=now)
+            tracked = fuse(self._scan_tracks.tracked(now), self._tracker.obstacles(now))
+            obs = follow.Observation(
+                pose=pose, velocity=velocity, obstacle_points=points,
+                tracked=self._in_plan_frame(tracked), time=now,
+                tentative=self._in_plan_frame(self._scan_tracks.tentative(now)))
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
             # measured velocity, which an odometry glitch can put beyond them.
@@ -876,9 +879,8 @@ class LocalPlannerNode(ManagedNode):
         except Exception as err:  # noqa: BLE001 - last line of defence, never raise
             self.get_logger().error(f'could not publish the stop command: {err}')
 
-    def _tracked_in_plan_frame(self, now):
-        """Scan tracks and ``obstacles`` (map frame) in the plan's frame: ``(K, 5)`` x, y, vx, vy, r."""
-        tracked = fuse(self._scan_tracks.tracked(now), self._tracker.obstacles(now))
+    def _in_plan_frame(self, tracked):
+        """Moving obstacles ``(K, 5)`` x, y, vx, vy, r from the map frame to the plan's frame."""
         if len(tracked) and not self._localization.same_frame:
             to_odom = frames.inverse(self._plan_correction)
             tracked = tracked.copy()

@@ -74,6 +74,12 @@ class ScanTracks:
             return np.zeros((0, 5))
         return self._tracker.report(now_s).tracked
 
+    def tentative(self, now_s):
+        """``(T, 5)`` the same for the tentative movers (seem to move, not confirmed yet)."""
+        if self._tracker is None:
+            return np.zeros((0, 5))
+        return self._tracker.report(now_s).tentative
+
     def report(self):
         """The tracker's TrackReport (None without a map)."""
         return None if self._tracker is None else self._tracker.report()

@@ -179,6 +179,11 @@ class Observation:
         obstacles; may be ``(0, 5)``; non-finite rows are ignored.
     time : float
         [s], finite.
+    tentative : ndarray, float64, shape (T, 5), optional
+        The same for objects that seem to move but are not confirmed as
+        moving (a scan tracker's tentative movers); default none. A
+        controller checks its commands against their predicted motion but
+        does not treat them as people.
 
     Raises
     ------
@@ -192,6 +197,7 @@ class Observation:
     obstacle_points: np.ndarray
     tracked: np.ndarray
     time: float
+    tentative: np.ndarray = None
 
     def __post_init__(self):
         pose = np.asarray(self.pose, dtype=float)
@@ -207,12 +213,9 @@ class Observation:
         if points.ndim != 2 or points.shape[1] != 2:
             raise InvalidInput(
                 f'Observation.obstacle_points must have shape (M, 2), got {points.shape}')
-        tracked = np.asarray(self.tracked, dtype=float)
-        tracked = tracked.reshape(0, 5) if tracked.size == 0 else tracked
-        if tracked.ndim != 2 or tracked.shape[1] != 5:
-            raise InvalidInput(f'Observation.tracked must have shape (K, 5), got {tracked.shape}')
-        if np.any(tracked[:, 4] < 0):
-            raise InvalidInput('Observation.tracked radii must be >= 0')
+        tracked = _circles(self.tracked, 'tracked')
+        tentative = _circles(np.zeros((0, 5)) if self.tentative is None else self.tentative,
+                             'tentative')
         if not (isinstance(self.time, (int, float, np.floating)) and math.isfinite(self.time)):
             raise InvalidInput(
                 f'Observation.time must be a finite number of seconds, got {self.time!r}')
@@ -220,7 +223,19 @@ class Observation:
         object.__setattr__(self, 'velocity', velocity)
         object.__setattr__(self, 'obstacle_points', points)
         object.__setattr__(self, 'tracked', tracked)
+        object.__setattr__(self, 'tentative', tentative)
         object.__setattr__(self, 'time', float(self.time))
+
+
+def _circles(rows, name):
+    """``rows`` as a ``(K, 5)`` float array of ``x, y, vx, vy, radius``, checked."""
+    circles = np.asarray(rows, dtype=float)
+    circles = circles.reshape(0, 5) if circles.size == 0 else circles
+    if circles.ndim != 2 or circles.shape[1] != 5:
+        raise InvalidInput(f'Observation.{name} must have shape (K, 5), got {circles.shape}')
+    if np.any(circles[:, 4] < 0):
+        raise InvalidInput(f'Observation.{name} radii must be >= 0')
+    return circles
 
 
 @dataclass(frozen=True)

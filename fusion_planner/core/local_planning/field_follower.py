@@ -19,8 +19,11 @@ prediction of tracked obstacles and escape from local minima. Each step
    escaping (see :mod:`fusion_planner.core.local_planning.escape`);
 4. the *command*: heading control under the speed caps (adaptive step of
    eq. (18), approach, braking), then, with prediction, the evasion check of
-   :mod:`fusion_planner.core.local_planning.evasion`, then the velocity and acceleration
-   limits.
+   :mod:`fusion_planner.core.local_planning.evasion` (against the tracked
+   obstacles and the tentative movers), then the velocity and acceleration
+   limits, then, for a route follower, the free-arc check of
+   :mod:`fusion_planner.core.local_planning.free_arc` on the command as
+   limited.
 
 Examples
 --------
@@ -47,6 +50,7 @@ from fusion_planner.core.local_planning.controller_base import (
 from fusion_planner.core.errors import (
     GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
+from fusion_planner.core.local_planning.free_arc import free_arc_speed, free_arc_turn
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
     thin_points, wrap_angle)
@@ -141,6 +145,7 @@ class _Scene:
     field_weights: np.ndarray     # (M',)
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
+    tentative: np.ndarray         # (T, 5) finite tentative movers, the same
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
                                   # (not measured for a route follower)
     repelling: tuple = None       # route followers: (points, velocities, weights) that repel
@@ -279,9 +284,7 @@ class FieldFollower(ControllerBase):
         points = obs.obstacle_points
         if len(points) and not np.all(np.isfinite(points)):
             points = points[np.all(np.isfinite(points), axis=1)]
-        tracked = obs.tracked
-        if len(tracked) and not np.all(np.isfinite(tracked)):
-            tracked = tracked[np.all(np.isfinite(tracked), axis=1)]
+        tracked, tentative = _finite_rows(obs.tracked), _finite_rows(obs.tentative)
         thinned = thin_points(points, p.point_spacing)
         if len(thinned):
             # only points within rho0 of the robot or of its rollout exert a force
@@ -292,7 +295,7 @@ class FieldFollower(ControllerBase):
         return _Scene(field_points=np.vstack([thinned, surface]),
                       field_velocities=np.vstack([np.zeros_like(thinned), velocities]),
                       field_weights=np.concatenate([np.ones(len(thinned)), weights]),
-                      all_points=points, tracked=tracked,
+                      all_points=points, tracked=tracked, tentative=tentative,
                       nearest_ahead=(math.inf if self._route is not None  # braking path instead
                                      else self._nearest_ahead(obs.pose, thinned, tracked)))
 
@@ -884,15 +887,53 @@ class FieldFollower(ControllerBase):
         return self._steer(heading, v_cap, obs)
 
     def _evade(self, obs, scene, command, desired):
-        """``command`` within the limits, or an evasive one if it runs into a tracked obstacle.
+        """``command`` within the limits, or an evasive one if it runs into a moving obstacle.
 
-        Only with prediction (see :mod:`fusion_planner.core.local_planning.evasion`);
-        ``desired`` (2,) is the direction the controller wants to go.
+        Only with prediction (see :mod:`fusion_planner.core.local_planning.evasion`),
+        against the tracked obstacles and the tentative movers (a person
+        not yet confirmed as moving is still checked against where it
+        walks); ``desired`` (2,) is the direction the controller wants to go.
+        Then, for a route follower, the free-arc check (:meth:`_on_free_arc`).
         """
-        if not self.predict or len(scene.tracked) == 0:
-            return self._limit(command[0], command[1], obs)
-        norm = math.hypot(desired[0], desired[1])
-        desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
-        v, w, _ = evasion.evade(obs.pose, obs.velocity, command, desired, scene.tracked,
-                                scene.all_points, self.params)
-        return self._limit(v, w, obs, v_min=-evasion.REVERSE_FRACTION * self.params.max_speed)
+        movers = np.vstack([scene.tracked, scene.tentative])
+        v_min = 0.0
+        if self.predict and len(movers):
+            norm = math.hypot(desired[0], desired[1])
+            desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
+            command = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
+                                    scene.all_points, self.params)[:2]
+            v_min = -evasion.REVERSE_FRACTION * self.params.max_speed
+        v, omega = self._limit(command[0], command[1], obs, v_min=v_min)
+        return self._on_free_arc(obs, scene, v, omega, v_min)
+
+    def _on_free_arc(self, obs, scene, v, omega, v_min):
+        """A route follower's command ``(v, omega)``, slowed so that it can stop on its arc.
+
+        Whatever the route following made of the scan points (beside the
+        route, a person not yet tracked), the robot must be able to stop
+        on the arc of the command it will drive (within the limits) clear
+        of every one of them
+        (:func:`~fusion_planner.core.local_planning.free_arc.free_arc_speed`),
+        as far as ``max_accel`` lets it brake now; when that is not enough,
+        the turn rate (within ``max_alpha``) is chosen for a free arc. The
+        field followers of the paper go unchecked.
+        """
+        if self._route is None:
+            return v, omega
+        p = self.params
+        safe = free_arc_speed(obs.pose, v, omega, scene.all_points, p)
+        if safe == v:
+            return v, omega
+        reachable, _ = self._limit(safe, omega, obs, v_min=v_min)
+        if abs(reachable) > abs(safe):  # it cannot brake enough on this arc: steer for a free one
+            w0, dw = obs.velocity[1], p.max_alpha * p.control_period
+            turns = (max(w0 - dw, -p.max_omega), min(w0 + dw, p.max_omega))
+            omega = free_arc_turn(obs.pose, reachable, turns, omega, scene.all_points, p)
+        return self._limit(safe, omega, obs, v_min=v_min)
+
+
+def _finite_rows(rows):
+    """The rows of ``rows`` (N, C) without a non-finite entry."""
+    if len(rows) and not np.all(np.isfinite(rows)):
+        return rows[np.all(np.isfinite(rows), axis=1)]
+    return rows

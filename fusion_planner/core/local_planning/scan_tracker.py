@@ -12,8 +12,14 @@ controller avoids (:attr:`Observation.tracked`):
    predicted to the scan's time.
 3. **Association**: the squared Mahalanobis distance of each candidate to
    each predicted track, gated at ``gate`` (chi-square, 2 degrees of
-   freedom) and at ``max_gate_distance``; one-to-one by the Hungarian method
-   (:func:`scipy.optimize.linear_sum_assignment`).
+   freedom), at ``max_gate_distance``, and by size: a whole candidate more
+   than ``size_ratio`` times larger or smaller than a confirmed track is a
+   merge (a person beside a box or another person) or a split (two who
+   walked together part) and is not that track's object; one-to-one by
+   the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`).
+   Correcting a track with the centre of a merge would swing its velocity
+   the wrong way; the track coasts instead, and the candidate starts a
+   track of its own.
 4. **Update, birth, death**: matched tracks are corrected, except by a
    partly hidden candidate (a nearer return beside it: its centre is
    biased), which only keeps its track alive; unmatched whole candidates
@@ -22,15 +28,26 @@ controller avoids (:attr:`Observation.tracked`):
    ``coast_time``, is dropped.
 5. **Report**: only tracks that move. A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
-   it was born, and its speed is at least ``min_speed``; it stays moving
-   until its speed falls below half of that, and must then travel
-   ``min_travel`` again. A static object's centre estimate shifts as the
-   view changes, so a track also stops moving while most of its returns
-   fall in cells hit without a break for ``static_age`` (:mod:`hit_ages`),
+   it was born, and its speed is at least ``min_speed``. It stays moving
+   until its speed has been below half of ``min_speed`` for ``stop_time``
+   (a person turning round passes
+   through zero speed), and must then travel again. A static object's
+   centre estimate shifts as the view changes, so a track also stops moving
+   once most of its returns have fallen in cells hit without a break for
+   ``static_age`` (:mod:`hit_ages`) for ``stop_time`` (a person turning
+   round walks back over the cells it has just hit),
    unless it has gone farther than ``max_object_radius`` from where it first
    appeared (no change of view moves a centre that far; a slow person keeps
    hitting the same cells for a while). Everything else (static unknown
    obstacles, people standing still) stays scan points.
+6. **Tentative movers**: tracks matched ``confirm_hits`` times that are not
+   (yet) moving, whose returns do not stay put, and whose estimated speed
+   is at least ``min_speed``, reported apart
+   (:attr:`TrackReport.tentative`): a person who has just stepped out from
+   behind a corner has a usable velocity estimate long before it has
+   travelled ``min_travel``, while a static object's estimate may wander
+   for a second as the view changes. A controller checks its commands
+   against them without treating them as people.
 
 Deterministic: the same scans give the same tracks (no randomness; ties in
 the assignment are broken by index). Vectorised over beams, candidates and
@@ -66,6 +83,7 @@ Examples
 """
 
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,6 +127,9 @@ class TrackerParams:
         of a 2-D Gaussian).
     max_gate_distance : float
         Largest distance [m] of an association, whatever the covariance.
+    size_ratio : float
+        Largest ratio (> 1) of a whole candidate's radius to a confirmed
+        track's, either way, that still associates.
     confirm_hits : int
         Matches before a track may be reported.
     coast_time : float
@@ -117,6 +138,10 @@ class TrackerParams:
         Slowest speed [m/s] of a moving track.
     min_travel : float
         Distance [m] from its birth a track must have travelled to be moving.
+    stop_time : float
+        A moving track stops moving once its speed has been below half of
+        ``min_speed``, or its returns in old cells (see ``static_age``), for
+        this long [s].
     radius_smoothing : float
         Weight in (0, 1] of a new radius in a track's running mean.
     static_age : float
@@ -138,10 +163,12 @@ class TrackerParams:
     initial_speed_std: float = 1.5
     gate: float = 13.8
     max_gate_distance: float = 1.0
+    size_ratio: float = 1.6
     confirm_hits: int = 3
     coast_time: float = 0.6
     min_speed: float = 0.1
     min_travel: float = 0.25
+    stop_time: float = 0.5
     radius_smoothing: float = 0.3
     static_age: float = 1.0
     hit_break: float = 0.3
@@ -150,15 +177,18 @@ class TrackerParams:
     def __post_init__(self):
         for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
+                     'size_ratio',
                      'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
             _check_real(name, getattr(self, name), zero_ok=False)
-        for name in ('min_speed', 'min_travel'):
+        for name in ('min_speed', 'min_travel', 'stop_time'):
             _check_real(name, getattr(self, name), zero_ok=True)
         for name in ('min_points', 'confirm_hits', 'max_tracks'):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise InvalidInput(
                     f'TrackerParams.{name} must be a positive integer, got {value!r}')
+        if not self.size_ratio > 1.0:
+            raise InvalidInput(f'TrackerParams.size_ratio must be > 1, got {self.size_ratio!r}')
 
 
 def _check_real(name, value, zero_ok):
@@ -202,12 +232,16 @@ class TrackReport:
     radii : ndarray, float64, shape (K,)
         [m]: a running mean of the radii of the whole (not partly hidden)
         candidates matched to each track.
+    tentative : ndarray, float64, shape (T, 5)
+        ``x, y, vx, vy, radius`` of the tentative movers (module notes,
+        step 6), same frame and units.
     """
 
     ids: np.ndarray
     states: np.ndarray
     covariances: np.ndarray
     radii: np.ndarray
+    tentative: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 5)))
 
     @property
     def tracked(self):
@@ -247,6 +281,9 @@ class ScanTracker:
         self._birth = np.zeros((0, 2))     # where each track must travel min_travel from [m]
         self._origin = np.zeros((0, 2))    # where each track first appeared [m]
         self._moving = np.zeros(0, bool)
+        self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
+        self._stays = np.zeros(0, bool)    # its returns stayed in old cells at its last match
+        self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
 
     def update(self, angles, ranges, origin, time):
         """Take in one scan.
@@ -284,7 +321,7 @@ class ScanTracker:
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
         occluded, staying = segments.occluded[objects], staying[objects]
-        track_of = self._associate(centers)
+        track_of = self._associate(centers, np.where(occluded, np.nan, radii))
         matched = track_of >= 0
         whole = matched & ~occluded
         self._correct(track_of[whole], centers[whole], radii[whole])
@@ -292,7 +329,12 @@ class ScanTracker:
         self._last_seen[track_of[matched & occluded]] = self.time
         # an object whose returns stay in the same cells is not moving, whatever
         # its centre estimate does as the view changes; it must travel again
+        self._stays[track_of[matched]] = staying[matched]
+        since = self._staying_since[track_of[matched]]
+        self._staying_since[track_of[matched]] = np.where(staying[matched],
+                                                          np.minimum(since, self.time), np.inf)
         still = track_of[matched & staying]
+        still = still[self.time - self._staying_since[still] >= p.stop_time]
         still = still[np.hypot(*(self._x[still, 0:2] - self._origin[still]).T)
                       <= p.max_object_radius]
         self._moving[still] = False
@@ -305,7 +347,7 @@ class ScanTracker:
         return ScanVerdict(True, note)
 
     def report(self, time=None):
-        """The moving tracks, optionally predicted ahead.
+        """The moving tracks and the tentative movers, optionally predicted ahead.
 
         Parameters
         ----------
@@ -317,12 +359,19 @@ class ScanTracker:
         -------
         TrackReport
         """
+        p = self.params
         keep = self._moving
-        states = self._x[keep].copy()
+        ahead = 0.0
         if time is not None and self.time is not None and math.isfinite(time):
-            states[:, 0:2] += states[:, 2:4] * (time - self.time)
-        return TrackReport(ids=self._ids[keep].copy(), states=states,
-                           covariances=self._p[keep].copy(), radii=self._radius[keep].copy())
+            ahead = time - self.time
+        states = self._x.copy()
+        states[:, 0:2] += states[:, 2:4] * ahead
+        tentative = (~keep & ~self._stays & (self._hits >= p.confirm_hits)
+                     & (np.hypot(states[:, 2], states[:, 3]) >= p.min_speed))
+        return TrackReport(ids=self._ids[keep].copy(), states=states[keep],
+                           covariances=self._p[keep].copy(), radii=self._radius[keep].copy(),
+                           tentative=np.column_stack([states[tentative],
+                                                      self._radius[tentative]]).reshape(-1, 5))
 
     @property
     def live_tracks(self):
@@ -358,17 +407,26 @@ class ScanTracker:
         self._x = self._x @ f.T
         self._p = f @ self._p @ f.T + noise
 
-    def _associate(self, centers):
-        """Track index of each candidate (-1: none), by gated Hungarian assignment."""
+    def _associate(self, centers, radii):
+        """Track index of each candidate (-1: none), by gated Hungarian assignment.
+
+        ``radii`` (C,) [m] are the candidates' radii, NaN for partly hidden
+        ones (their size says nothing).
+        """
         track_of = np.full(len(centers), -1, np.int64)
         if not len(centers) or not len(self._x):
             return track_of
+        p = self.params
         innovation = centers[None, :, :] - self._x[:, None, 0:2]            # (K, C, 2)
         s = self._p[:, 0:2, 0:2] + self._measurement_cov                     # (K, 2, 2)
         s_inv = np.linalg.inv(s)
         mahalanobis = np.einsum('kci,kij,kcj->kc', innovation, s_inv, innovation)
         distance = np.hypot(innovation[..., 0], innovation[..., 1])
-        allowed = (mahalanobis <= self.params.gate) & (distance <= self.params.max_gate_distance)
+        ratio = radii[None, :] / self._radius[:, None]                          # (K, C)
+        with np.errstate(invalid='ignore'):  # NaN: a partly hidden candidate, any size
+            resized = (ratio > p.size_ratio) | (ratio < 1.0 / p.size_ratio)
+        resized &= (self._hits >= p.confirm_hits)[:, None]
+        allowed = (mahalanobis <= p.gate) & (distance <= p.max_gate_distance) & ~resized
         cost = np.where(allowed, mahalanobis, FORBIDDEN_COST)
         rows, cols = linear_sum_assignment(cost)
         ok = allowed[rows, cols]
@@ -420,6 +478,9 @@ class ScanTracker:
         self._birth = np.concatenate([self._birth, centers])
         self._origin = np.concatenate([self._origin, centers])
         self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
+        self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
+        self._stays = np.concatenate([self._stays, np.zeros(n, bool)])
+        self._staying_since = np.concatenate([self._staying_since, np.full(n, np.inf)])
 
     def _mark_moving(self):
         p = self.params
@@ -427,8 +488,10 @@ class ScanTracker:
         travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
         starts = ((self._hits >= p.confirm_hits) & (travelled >= p.min_travel)
                   & (speed >= p.min_speed))
-        stops = self._moving & (speed < 0.5 * p.min_speed)
-        # a stopped track must travel min_travel again from where it stopped
+        slow = speed < 0.5 * p.min_speed
+        self._slow_since = np.where(slow, np.minimum(self._slow_since, self.time), np.inf)
+        stops = self._moving & slow & (self.time - self._slow_since >= p.stop_time)
+        # a stopped track must travel again from where it stopped
         self._birth[stops] = self._x[stops, 0:2]
         self._moving = (self._moving & ~stops) | starts
 
@@ -438,6 +501,9 @@ class ScanTracker:
         self._last_seen, self._birth = self._last_seen[mask], self._birth[mask]
         self._origin = self._origin[mask]
         self._moving = self._moving[mask]
+        self._slow_since = self._slow_since[mask]
+        self._stays = self._stays[mask]
+        self._staying_since = self._staying_since[mask]
 
 
 def _checked_scan(angles, ranges, origin, time):

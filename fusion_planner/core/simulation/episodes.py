@@ -82,6 +82,10 @@ class EpisodeResult:
     moving_collisions : int
         Those of them that began with a moving obstacle overlapping the robot
         (rather than the robot driving into a static obstacle).
+    passive_collisions : int
+        Those of them that a moving obstacle began while the robot stood or
+        retreated from it (:attr:`World.passive_contact_events`); the others
+        the robot could have avoided.
     time_s : float
         Simulated time at the end [s].
     path_length_m : float
@@ -132,6 +136,7 @@ class EpisodeResult:
     min_clearance_m: float
     stuck_events: int
     moving_collisions: int = 0
+    passive_collisions: int = 0
     perception: str = PERCEPTION_MODES[0]
     outcome: str = 'reached'
     failure: str = None
@@ -164,7 +169,7 @@ class EpisodeResult:
             ``path_length_m``, ``min_clearance_m``, ``stuck_events``,
             ``failure`` (None or a reason), ``scenario``, ``family``,
             ``solvable``, ``controller``, ``perception``, ``seed``, ``plan_length_m``,
-            ``moving_collisions``, ``no_path_proven_at_s``,
+            ``moving_collisions``, ``passive_collisions``, ``no_path_proven_at_s``,
             ``optimal_length_m``, ``optimal_time_s``, ``time_ratio``.
         """
         return {
@@ -178,6 +183,7 @@ class EpisodeResult:
             'outcome': self.outcome,
             'collisions': int(self.collisions),
             'moving_collisions': int(self.moving_collisions),
+            'passive_collisions': int(self.passive_collisions),
             'time_s': round(float(self.time_s), 3),
             'path_length_m': round(float(self.path_length_m), 3),
             'min_clearance_m': (round(float(self.min_clearance_m), 3)
@@ -360,9 +366,10 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     steps = 0
     for _ in range(max_steps):
         scan = world.scan()
+        tracked = perceive.tracked(world, scan)
         obs = follow.Observation(pose=world.pose.copy(), velocity=world.velocity.copy(),
-                                 obstacle_points=scan.points, tracked=perceive.tracked(world, scan),
-                                 time=world.time)
+                                 obstacle_points=scan.points, tracked=tracked,
+                                 time=world.time, tentative=perceive.tentative)
         command = controller.compute(obs)
         if record:
             trajectory.append(world.pose.copy())
@@ -400,7 +407,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
         reached=reached, collisions=world.contact_events, time_s=world.time,
         path_length_m=path_length, min_clearance_m=min_clearance,
         stuck_events=int(getattr(controller, 'stuck_events', 0)),
-        moving_collisions=world.moving_contact_events, outcome=outcome,
+        moving_collisions=world.moving_contact_events,
+        passive_collisions=world.passive_contact_events, outcome=outcome,
         failure=failure, plan_length_m=plan_length,
         no_path_proven_at_s=None if proven_at is None else float(proven_at), **reference,
         trajectory=np.array(trajectory).reshape(-1, 3) if record else None,
@@ -435,6 +443,9 @@ class ControllerSummary:
         Contact events over all episodes.
     moving_collisions : int
         Those that began with a moving obstacle overlapping the robot.
+    avoidable_collisions : int
+        Those that were not passive (a moving obstacle walking into a robot
+        that stood or retreated; :attr:`EpisodeResult.passive_collisions`).
     episodes_with_collisions : int
     mean_time_s : float or None
         Mean simulated time of the successful episodes [s].
@@ -473,6 +484,7 @@ class ControllerSummary:
     outcomes: dict = field(default_factory=lambda: dict.fromkeys(OUTCOMES, 0))
     collisions: int = 0
     moving_collisions: int = 0
+    avoidable_collisions: int = 0
     episodes_with_collisions: int = 0
     mean_time_s: float = None
     mean_time_ratio: float = None
@@ -697,6 +709,7 @@ def summarise(controller, rows, perception=PERCEPTION_MODES[0]):
     out.outcomes = {name: counts.get(name, 0) for name in OUTCOMES}
     out.collisions = sum(r['collisions'] for r in rows)
     out.moving_collisions = sum(r.get('moving_collisions', 0) for r in rows)
+    out.avoidable_collisions = out.collisions - sum(r.get('passive_collisions', 0) for r in rows)
     out.episodes_with_collisions = sum(1 for r in rows if r['collisions'] > 0)
     out.stuck_events = sum(r['stuck_events'] for r in rows)
     out.stuck_run_fraction = sum(1 for r in rows if r['stuck_events'] > 0) / len(rows)

@@ -5,15 +5,18 @@ Two modes, named in :data:`PERCEPTION_MODES`:
 ``scan``
     A :class:`~fusion_planner.core.local_planning.scan_tracker.ScanTracker`
     on the known map reads every simulated scan; the controller gets its
-    moving tracks only. What the laser does not see (a person behind a wall)
-    is not reported, and a person is reported only once the tracker has
-    seen it move.
+    moving tracks, and apart from them its tentative movers (objects that
+    seem to move but have not travelled far enough to be sure). What the
+    laser does not see (a person behind a wall) is not reported, and a
+    person is reported as moving only once the tracker has seen it move.
 ``ideal``
     The oracle: the true position and velocity of every moving obstacle,
     seen or not (:meth:`World.tracked_obstacles`).
 
 Either way the controller also gets every scan hit point.
 """
+
+import numpy as np
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.scan_tracker import ScanTracker
@@ -33,23 +36,36 @@ class ScanPerception:
     Attributes
     ----------
     tracker : ScanTracker
+    tentative : ndarray, shape (T, 5)
+        ``x, y, vx, vy, radius`` of the tentative movers after the last
+        :meth:`tracked` (map frame).
     """
 
     mode = 'scan'
 
     def __init__(self, grid):
         self.tracker = ScanTracker(grid)
+        self.tentative = np.zeros((0, 5))
 
     def tracked(self, world, scan):
         """``(K, 5)`` ``x, y, vx, vy, radius`` of the moving tracks after ``scan`` (map frame)."""
         self.tracker.update(scan.angles, scan.ranges, scan.origin, world.time)
-        return self.tracker.report().tracked
+        report = self.tracker.report()
+        self.tentative = report.tentative
+        return report.tracked
 
 
 class IdealPerception:
-    """Every moving obstacle's true state, visible or not."""
+    """Every moving obstacle's true state, visible or not.
+
+    Attributes
+    ----------
+    tentative : ndarray, shape (0, 5)
+        None: the oracle is sure of every obstacle.
+    """
 
     mode = 'ideal'
+    tentative = np.zeros((0, 5))
 
     def tracked(self, world, scan):
         """``(K, 5)`` ``x, y, vx, vy, radius`` of every moving obstacle (map frame)."""

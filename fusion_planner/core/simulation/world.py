@@ -24,7 +24,15 @@ Conventions
   robot keeps its position, may still turn, and its speed drops to zero). A
   moving obstacle ignores the robot and may overlap it. A *contact event* is
   a step in contact (refused step or overlap) that follows a step without
-  contact, so pressing against a wall for many steps counts once.
+  contact, so pressing against a wall for many steps counts once. A contact
+  event with a moving obstacle is *passive* when it begins while the robot
+  stands (moved slower than :data:`AT_REST_MPS` in that step) or retreats
+  from the obstacle it touches (moved within 60 degrees of straight away
+  from it, :data:`RETREAT_COSINE`): the people here ignore the robot, and
+  no motion of a robot at rest or in retreat prevents one from walking into
+  it (passive safety: a robot in motion answers for its contacts). Every
+  other contact event is *avoidable*: a robot driving across a person's way
+  is in motion, not retreating.
 - Moving obstacles bounce off the static world (axis-separated reflection of
   their velocity) and pass through one another.
 - Determinism: all randomness (random walks, scan noise) comes from
@@ -62,6 +70,14 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation import ray_kernel
 
 LOGGER = logging.getLogger(__name__)
+
+#: A robot that moved slower than this [m/s] in the step a contact began
+#: stood still (see the module notes).
+AT_REST_MPS = 0.05
+
+#: A robot whose velocity points within 60 degrees of straight away from an
+#: obstacle (closing speed at most this times its speed) retreats from it.
+RETREAT_COSINE = -0.5
 
 #: Turn rates below this are integrated as a straight line [rad/s].
 STRAIGHT_OMEGA_EPS = 1e-9
@@ -745,6 +761,8 @@ class World:
     moving_contact_events : int
         Those of them that began with a moving obstacle overlapping the robot
         (not with a refused step into a static obstacle).
+    passive_contact_events : int
+        Those of them that were passive (see the module notes).
     in_contact : bool
         Whether the last step ended in contact.
     """
@@ -777,6 +795,7 @@ class World:
         self.time = 0.0
         self.contact_events = 0
         self.moving_contact_events = 0
+        self.passive_contact_events = 0
         self.in_contact = False
         self._movers = [self._make_mover(spec) for spec in moving_obstacles]
 
@@ -829,6 +848,20 @@ class World:
 
     def _overlaps_mover(self, p, r):
         return any(np.hypot(*(m.position - p)) < m.spec.radius + r for m in self._movers)
+
+    def _passive(self, before, dt):
+        """Whether the robot, at ``before`` (2,) [m] a step ``dt`` [s] ago, stood or retreated.
+
+        Retreating is from the moving obstacle nearest to overlapping it now.
+        """
+        velocity = (self.pose[:2] - before) / dt
+        speed = math.hypot(velocity[0], velocity[1])
+        if speed < AT_REST_MPS:
+            return True
+        gaps = [math.hypot(*(m.position - self.pose[:2])) - m.spec.radius for m in self._movers]
+        towards = self._movers[int(np.argmin(gaps))].position - self.pose[:2]
+        closing = float(velocity @ towards) / max(math.hypot(towards[0], towards[1]), 1e-9)
+        return closing <= RETREAT_COSINE * speed
 
     # -- sensing ----------------------------------------------------------------
 
@@ -904,6 +937,7 @@ class World:
         for mover in self._movers:
             self._move(mover, dt)
         new_pose = integrate_unicycle(self.pose, v, omega, dt)
+        before = self.pose[:2].copy()
         blocked = self.static.disc_collides(new_pose[:2], spec.radius)
         if blocked:
             # a bump: the robot stays where it was, turning is still possible
@@ -918,6 +952,7 @@ class World:
         if started:
             self.contact_events += 1
             self.moving_contact_events += int(not blocked)
+            self.passive_contact_events += int(not blocked and self._passive(before, dt))
             LOGGER.debug('contact at t=%.2f s, pose %s', self.time, self.pose.round(3).tolist())
         self.in_contact = contact
         return started
