@@ -152,7 +152,7 @@ def test_bad_updates_are_refused():
         ObstacleLayer(np.zeros((3, 3), bool))
 
 
-@pytest.mark.skipif(not beam_cells.AVAILABLE, reason='needs numba (the fast extra)')
+@pytest.mark.skipif(not beam_cells.available(), reason='needs numba (the fast extra)')
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10_000), yaw=st.sampled_from([0.0, 0.7, -math.pi / 2]))
 def test_compiled_clearing_finds_the_cells_of_the_array_version(seed, yaw):

