@@ -421,6 +421,14 @@ def test_evasion_does_not_back_into_a_wall():
     assert evading and v >= 0.0                                 # turns and sidesteps instead
 
 
+def test_evasion_that_waits_beside_a_passing_person_keeps_its_heading():
+    """Standing still, every turn rate ties; the robot must not spin toward the person."""
+    beside = wall((-2.0, 0.33), (4.0, 0.33), spacing=0.05)      # pulled aside to a wall
+    person = [[1.5, -0.57, -0.35, 0.0, 0.3]]                     # walking past in the other lane
+    v, omega, evading = evade_now((0.3, -0.15), person, beside, pose=(0.0, 0.0, 0.1))
+    assert evading and (v, omega) == (0.0, 0.0)
+
+
 def test_evasion_ignores_scan_points_on_the_tracked_person():
     person = [[1.2, 0.0, -0.35, 0.0, 0.3]]
     v, _, _ = evade_now((0.0, 0.0), person, np.vstack([SLIT, circle((1.2, 0.0), 0.3)]))

@@ -270,3 +270,11 @@ def test_follower_override_values_are_checked_at_load_time(room):
     assert params.apf.k_rep == 0.05 and params.robot_radius == 0.2 and params.max_speed == 0.6
     doc['follower'] = {'apf': {'k_repulsion': 0.05}}
     assert "key 'follower' is invalid" in error_of(write(room, doc))
+
+
+def test_the_turn_ramp_follows_from_the_robot_unless_overridden(room):
+    doc = base_doc()
+    doc['robot'].update(max_accel=2.0, radius=0.25)
+    assert load_scenario(write(room, doc)).follower_params().max_alpha == pytest.approx(8.0)
+    doc['follower'] = {'max_alpha': 3.0}
+    assert load_scenario(write(room, doc)).follower_params().max_alpha == 3.0

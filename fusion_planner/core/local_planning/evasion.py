@@ -31,7 +31,8 @@ Evasion
     keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion are preferred when there are any; then the latest predicted
     contact wins, then the least intrusion into the margin (its time
-    integral [m s]), then the most progress along the desired direction. It
+    integral [m s]), then the most progress along the desired direction,
+    then the turn rate nearest the controller's. It
     is the only place a controller reverses: backing away is sometimes the
     only way out of a person's path, but not into a corner, and not when
     waiting beside them will do.
@@ -111,6 +112,12 @@ TURN_FRACTIONS = (-1.0, -0.4, 0.0, 0.4, 1.0)
 
 #: Intrusions closer than this [m s] count as equal (ties go to progress).
 INTRUSION_TOLERANCE = 1e-6
+
+#: Progress [m] closer than this counts as equal. Candidates that stand
+#: still tie on everything whatever their turn rate; the tie goes to the
+#: turn rate nearest the controller's, not to the first of the fan (a spin
+#: at ``-max_omega`` toward whoever is passing).
+PROGRESS_TOLERANCE = 1e-6
 
 #: Slack [m] of the clearance comparisons (floating point only).
 CLEARANCE_EPS = 1e-9
@@ -292,7 +299,8 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
     obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
-    most progress along ``desired``.
+    most progress along ``desired``, then the turn rate nearest
+    ``command``'s (a robot that waits keeps its heading rather than spin).
     """
     q = pose[:2]
     tracked = _relevant(q, tracked, params)
@@ -324,5 +332,6 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     intrusion = np.maximum(MOVING_MARGIN - gaps, 0.0).sum(axis=1) * ROLLOUT_STEP
     best = allowed & (contact == np.max(contact[allowed]))
     best &= intrusion <= np.min(intrusion[best]) + INTRUSION_TOLERANCE
-    choice = int(np.argmax(np.where(best, progress, -np.inf)))
+    best &= progress >= np.max(progress[best]) - PROGRESS_TOLERANCE
+    choice = int(np.argmin(np.where(best, np.abs(targets[:, 1] - command[1]), np.inf)))
     return float(targets[choice, 0]), float(targets[choice, 1]), True

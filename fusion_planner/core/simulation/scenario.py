@@ -209,8 +209,13 @@ class Scenario:
         """The :class:`~fusion_planner.core.local_planning.follow.FollowerParams` of this scenario.
 
         The robot's limits and radius and the control period come from
-        ``robot`` and ``limits``; ``follower`` overrides any other field (an
-        ``apf`` mapping overrides fields of ``ApfParams``).
+        ``robot`` and ``limits``. So does the turn-rate ramp: ``max_alpha``
+        = ``max_accel / radius`` [rad/s^2], what a differential drive whose
+        wheels sit at its radius reaches with both wheels accelerating fully
+        in opposite directions (the simulated robot bounds only speed,
+        acceleration and turn rate). ``follower`` overrides any field,
+        ``max_alpha`` included (an ``apf`` mapping overrides fields of
+        ``ApfParams``).
 
         Raises
         ------
@@ -222,8 +227,8 @@ class Scenario:
         apf_overrides = overrides.pop('apf', None)
         robot = self.robot
         values = dict(max_speed=robot.max_speed, max_accel=robot.max_accel,
-                      max_omega=robot.max_omega, robot_radius=robot.radius,
-                      control_period=self.limits.dt)
+                      max_omega=robot.max_omega, max_alpha=robot.max_accel / robot.radius,
+                      robot_radius=robot.radius, control_period=self.limits.dt)
         values.update(overrides)
         if apf_overrides is not None:
             if not isinstance(apf_overrides, dict):
