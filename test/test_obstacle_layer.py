@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
+from fusion_planner.core.global_planning import beam_cells
 from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
 from fusion_planner.core.simulation.world import Rectangle, StaticScene
 
@@ -149,3 +150,22 @@ def test_bad_updates_are_refused():
         layer.update((1.0, 1.0), np.zeros((1, 2)), [True], now=math.inf)
     with pytest.raises(InvalidInput):
         ObstacleLayer(np.zeros((3, 3), bool))
+
+
+@pytest.mark.skipif(not beam_cells.available(), reason='needs numba (the fast extra)')
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), yaw=st.sampled_from([0.0, 0.7, -math.pi / 2]))
+def test_compiled_clearing_finds_the_cells_of_the_array_version(seed, yaw):
+    # beams leaving the grid, ending on the origin (length zero), with and without returns
+    rng = np.random.default_rng(seed)
+    grid = GridMap(np.zeros((40, 60), bool), RESOLUTION, origin=(-1.0, 0.5, yaw))
+    layer = ObstacleLayer(grid, clear_range=rng.uniform(0.5, 5.0))
+    origin = grid.world_of(np.array([rng.integers(0, 40), rng.integers(0, 60)])) \
+        + rng.uniform(-0.05, 0.05, 2)
+    lengths = rng.uniform(0.0, 8.0, BEAMS)
+    lengths[rng.random(BEAMS) < 0.05] = 0.0
+    ends = origin + DIRECTIONS * lengths[:, None]
+    hit = rng.random(BEAMS) < 0.5
+    compiled = layer._cleared_cells(origin, ends, hit)
+    arrays = layer._cleared_cells(origin, ends, hit, compiled=False)
+    assert len(arrays) and np.array_equal(compiled, arrays), seed

@@ -13,6 +13,7 @@ from fusion_planner.core.simulation.world import (
     BounceMotion, Circle, MovingObstacle, RandomWalkMotion, Rectangle, RobotSpec, ScanConfig,
     StaticScene, WaypointMotion, World, integrate_unicycle, ray_box_distances,
     ray_circle_distances, ray_grid_distances, rasterise_obstacles)
+from fusion_planner.core.simulation import ray_kernel
 
 RES = 0.1
 
@@ -199,6 +200,23 @@ def test_grid_ray_cast_agrees_with_analytic_cell_boxes(seed):
     # the boxes as they are and the boxes shrunk by 1e-7 cells
     assert np.all(got >= expected(0.0) - 1e-9), seed
     assert np.all(got <= expected(1e-7) + 1e-9), seed
+
+
+@pytest.mark.skipif(not ray_kernel.available(), reason='needs numba (the fast extra)')
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), max_distance=st.sampled_from([3.0, 12.5, 80.0]))
+def test_compiled_ray_cast_equals_the_array_version(seed, max_distance):
+    rng = np.random.default_rng(seed)
+    occ = rng.random((30, 40)) < 0.08
+    origin = rng.uniform([1, 1], [39, 29])
+    occ[int(origin[1]), int(origin[0])] = False
+    # random rays and the axis-aligned and diagonal ones (crossings in ties, zero components)
+    angles = np.concatenate([rng.uniform(-math.pi, math.pi, 50), np.arange(-4, 4) * math.pi / 4])
+    dirs = np.stack([np.cos(angles), np.sin(angles)], 1)
+    dirs[np.abs(dirs) < 1e-12] = 0.0
+    compiled = ray_grid_distances(occ, origin, dirs, max_distance)
+    arrays = ray_grid_distances(occ, origin, dirs, max_distance, compiled=False)
+    assert np.array_equal(compiled, arrays), seed
 
 
 def test_ray_helpers_handle_inside_and_miss():

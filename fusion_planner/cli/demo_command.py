@@ -598,7 +598,8 @@ def stop_processes(procs, timeout_s=PROCESS_STOP_TIMEOUT_S):
     return codes
 
 
-def watch(recorder, time_limit_s, wall_limit_s, alive=lambda: None, progress=None):
+def watch(recorder, time_limit_s, wall_limit_s, alive=lambda: None, progress=None,
+          tick=lambda: None):
     """Wait until arrival, failure, the simulated time limit or a stall.
 
     Parameters
@@ -613,6 +614,8 @@ def watch(recorder, time_limit_s, wall_limit_s, alive=lambda: None, progress=Non
     progress : callable, optional
         ``progress(sim_time, distance, collisions)`` every
         :data:`PROGRESS_PERIOD_S`.
+    tick : callable, optional
+        Called every :data:`PROGRESS_PERIOD_S` (e.g. a :func:`goal_when_heard`).
 
     Returns
     -------
@@ -634,12 +637,40 @@ def watch(recorder, time_limit_s, wall_limit_s, alive=lambda: None, progress=Non
         stopped = alive()
         if stopped is not None:
             return stopped
+        tick()
         if time.monotonic() - recorder.clock_wall > CLOCK_STALL_S:
             return f'the simulated clock has not advanced for {CLOCK_STALL_S:g} s of wall time'
         if time.monotonic() - start > wall_limit_s:
             break
         time.sleep(PROGRESS_PERIOD_S)
     return f'wall time limit of {wall_limit_s:.0f} s reached'
+
+
+def goal_when_heard(node, recorder, goal):
+    """A ``tick`` for :func:`watch` that sends ``goal`` once the monitor hears every node.
+
+    With the nodes in other processes, DDS discovery can take longer than a
+    fast run: the monitor sends the goal itself (the simulator's
+    ``publish_goal`` off) once it has heard the simulator's ground truth and
+    knows the diagnostics publishers of the three nodes. The world is held
+    until the first plan, so nothing of the run is missed.
+    """
+    from geometry_msgs.msg import PoseStamped
+
+    from fusion_planner.ros.conversions import seconds_to_stamp
+    from fusion_planner.ros.diagnostics import DIAGNOSTICS_TOPIC
+    from fusion_planner.ros.goal_sender import GoalSender
+    from fusion_planner.ros.qos import RELIABLE_QOS
+
+    sender = GoalSender(node.create_publisher(PoseStamped, 'goal_pose', RELIABLE_QOS))
+
+    def tick():
+        if recorder.plan is not None:
+            sender.on_plan()
+        elif recorder.pose_times and node.count_publishers(DIAGNOSTICS_TOPIC) >= len(NODES):
+            # in the simulator's default frame, which the demo keeps
+            sender.poll(goal, 'map', seconds_to_stamp(recorder.sim_time))
+    return tick
 
 
 class Spinner:
@@ -778,7 +809,10 @@ def run(args):
             topic_recorder = start_recording(nodes[0], mcap_path)
         executor = make_executor(context)
         executor.add_node(nodes[0])
+        tick = lambda: None  # noqa: E731 - nothing to do each poll in one process
         if args.processes:
+            params['simulator']['publish_goal'] = False
+            tick = goal_when_heard(nodes[0], recorder, scenario.goal)
             procs = start_processes(params, share_file('config/params.yaml'), log_dir)
 
             def alive():
@@ -796,7 +830,7 @@ def run(args):
             def alive():
                 return None if context.ok() else 'ROS was shut down'
         spinner = Spinner(executor)
-        failure = watch(recorder, time_limit, wall_limit, alive, progress)
+        failure = watch(recorder, time_limit, wall_limit, alive, progress, tick)
         end_wall = time.monotonic()
         if failure is None:
             wait_final_status(recorder, end_wall)  # collisions and distance at the end

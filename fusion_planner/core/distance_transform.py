@@ -12,23 +12,12 @@ a float64 output and a few row-sized arrays, where scipy's
 besides (0.45 GB more at the peak on 4000 x 4000 cells).
 """
 
-import importlib.util
-
 import numpy as np
 
-
-def numba_installed():
-    """Whether numba can be imported, without importing it (that takes 0.4 s)."""
-    try:
-        return importlib.util.find_spec('numba') is not None
-    except ValueError:  # a module set to None in sys.modules
-        return False
-
+from fusion_planner.core.compiled import LazyLoop, numba_installed
 
 #: Whether the compiled transform can be used.
 AVAILABLE = numba_installed()
-
-_compiled_rows = None
 
 
 def squared_distances(column_distance, far):
@@ -49,16 +38,13 @@ def squared_distances(column_distance, far):
         one occupied cell in the map. None when numba cannot be imported
         (then :data:`AVAILABLE` turns False).
     """
-    global AVAILABLE, _compiled_rows
-    if _compiled_rows is None:
-        try:
-            import numba
-        except ImportError:  # installed but broken
-            AVAILABLE = False
-            return None
-        _compiled_rows = numba.njit(cache=True, nogil=True)(_lower_envelope_rows)
+    global AVAILABLE
+    rows = _ROWS.load()
+    if rows is None:
+        AVAILABLE = False
+        return None
     out = np.empty(column_distance.shape)
-    _compiled_rows(column_distance, far, out)
+    rows(column_distance, far, out)
     return out
 
 
@@ -96,3 +82,6 @@ def _lower_envelope_rows(column_distance, far, out):
                 k += 1
             d = c - sites[k]
             out[r, c] = d * d + heights[k]
+
+
+_ROWS = LazyLoop(_lower_envelope_rows)

@@ -607,6 +607,9 @@ class GlobalPlannerNode(ManagedNode):
         if self._layer is None or not self._poses:
             return  # no map to mark on, or no pose to place the beams with
         params = self._params.current
+        now = self._now_s()
+        if now - self._layer_updated < params.obstacle_update_period:
+            return  # persistence is measured in seconds: every scan is not needed
         stamp = conv.stamp_to_seconds(msg.header.stamp)
         if self._tf is not None:
             frame = msg.header.frame_id
@@ -620,9 +623,6 @@ class GlobalPlannerNode(ManagedNode):
             frame = params.laser_frame_id
             laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
         ends, hit = conv.scan_to_rays(msg, tuple(laser), frame, 'scan')
-        now = self._now_s()
-        if now - self._layer_updated < self._params.current.obstacle_update_period:
-            return  # persistence is measured in seconds: every scan is not needed
         self._layer_updated = now
         if not self._layer.update(pose[:2], ends, hit, now):
             return

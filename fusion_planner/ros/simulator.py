@@ -78,7 +78,8 @@ Topics (relative names, so a namespace or a remap applies):
   a malformed one (wrong frame, NaN points) is refused.
 - ``goal_pose`` (geometry_msgs/PoseStamped) out with ``publish_goal``: the
   scenario's goal, once a subscriber (the global planner) is matched,
-  re-sent until a ``plan`` answers (at most :data:`MAX_GOAL_ATTEMPTS`).
+  re-sent until a ``plan`` answers (at most
+  :data:`~fusion_planner.ros.goal_sender.MAX_GOAL_ATTEMPTS`).
 - ``diagnostics`` out: collisions (contact events), minimum clearance,
   travelled distance, distance to the goal, simulated time and the real-time
   factor achieved.
@@ -113,6 +114,7 @@ from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import ERROR, OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.parameters import ParameterHandler, ParameterSpec, float_range
 from fusion_planner.ros.frames import map_from_odom
+from fusion_planner.ros.goal_sender import GoalSender
 from fusion_planner.ros.robot_sensors import DriftingOdometry, NoisyLocalizer
 from fusion_planner.ros.qos import (
     LATCHED_QOS, RELIABLE_QOS, SENSOR_QOS, LatchedOrVolatile)
@@ -132,10 +134,6 @@ CMD_VEL_TYPE_CHECK_PERIOD_S = 0.25
 MAX_COMMAND_FACTOR = 10.0
 #: Wall period of the goal publisher's check [s].
 GOAL_CHECK_PERIOD_S = 0.25
-#: Wall time without a plan after which the goal is sent again [s].
-GOAL_RETRY_PERIOD_S = 2.0
-#: The goal is sent at most this many times [1].
-MAX_GOAL_ATTEMPTS = 5
 #: Slack on comparisons of simulated times [s] (sums of steps are inexact).
 TIME_EPS_S = 1e-6
 #: Longest wall time the simulation waits for a late command [s]; after it
@@ -144,9 +142,6 @@ TIME_EPS_S = 1e-6
 COMMAND_WAIT_LIMIT_S = 1.0
 #: Wall period of the sensor messages while the world is held at t = 0 [s].
 PAUSED_PUBLISH_PERIOD_S = 0.1
-#: Wall time a subscriber must have been matched before the goal is sent [s]
-#: (gives the subscriber's side of discovery time to match us back).
-GOAL_MATCH_SETTLE_S = 0.3
 #: Longest wall period of the lockstep simulator's timer [s] (see
 #: SimulatorNode._make_step_timer).
 LOCKSTEP_POLL_S = 0.05
@@ -428,10 +423,6 @@ class SimulatorNode(ManagedNode):
         self._rtf_mark = (time.monotonic(), 0.0)  # (wall, sim) at the last status
         self._rtf = 0.0
         # goal publishing state
-        self._goal_attempts = 0
-        self._goal_sent_at = None    # wall time of the last send
-        self._goal_matched_at = None
-        self._goal_answered = False
         self._paused = params.start_paused  # held at t = 0 until the first plan
         self._paused_published = -math.inf  # wall time of the last sensors while held [s]
 
@@ -447,7 +438,8 @@ class SimulatorNode(ManagedNode):
                                    else SENSOR_QOS)
         self._obstacles_pub = publisher(MarkerArray, 'obstacles', RELIABLE_QOS)
         self._clock_pub = publisher(ClockMsg, 'clock', RELIABLE_QOS)
-        self._goal_pub = publisher(PoseStamped, 'goal_pose', RELIABLE_QOS)
+        self._goal_sender = GoalSender(publisher(PoseStamped, 'goal_pose', RELIABLE_QOS),
+                                       self.get_logger())
         self._cmd_vel_sub = self.create_subscription(
             TwistStamped if params.enable_stamped_cmd_vel else Twist, 'cmd_vel',
             guard('cmd_vel', self._on_cmd_vel_then_step), RELIABLE_QOS)
@@ -554,8 +546,7 @@ class SimulatorNode(ManagedNode):
     def _on_plan(self, msg):
         """A plan answers the goal; the first non-empty one starts a paused world."""
         path = conv.plan_from_msg(msg, self._frame_id, 'plan')  # refuses one nobody can follow
-        if self._goal_sent_at is not None:
-            self._goal_answered = True
+        self._goal_sender.on_plan()
         if self._paused and path is not None:
             self._paused = False
             self._command = (0.0, 0.0)  # the first step leaves the robot at rest
@@ -779,30 +770,9 @@ class SimulatorNode(ManagedNode):
 
     def _on_goal_timer(self):
         """Send the scenario's goal once the planner listens; re-send until a plan answers."""
-        if not self.active or not self._params.current.publish_goal or self._goal_answered \
-                or self._goal_attempts >= MAX_GOAL_ATTEMPTS:
-            return
-        now = time.monotonic()
-        if self._goal_pub.get_subscription_count() == 0:
-            self._goal_matched_at = None
-            return
-        if self._goal_matched_at is None:
-            self._goal_matched_at = now
-        if now - self._goal_matched_at < GOAL_MATCH_SETTLE_S:
-            return
-        if self._goal_sent_at is not None and now - self._goal_sent_at < GOAL_RETRY_PERIOD_S:
-            return
-        msg = PoseStamped()
-        msg.header.frame_id = self._frame_id
-        msg.header.stamp = conv.seconds_to_stamp(self.world.time)
-        msg.pose.position.x = float(self._goal[0])
-        msg.pose.position.y = float(self._goal[1])
-        msg.pose.orientation.w = 1.0
-        self._goal_pub.publish(msg)
-        self._goal_sent_at = now
-        self._goal_attempts += 1
-        self.get_logger().info(f'goal ({self._goal[0]:.2f}, {self._goal[1]:.2f}) published '
-                               f'(attempt {self._goal_attempts})')
+        if self.active and self._params.current.publish_goal:
+            self._goal_sender.poll(self._goal, self._frame_id,
+                                   conv.seconds_to_stamp(self.world.time))
 
     def _publish_status(self):
         """Diagnostics heartbeat: collisions, clearance, distances, achieved speed."""

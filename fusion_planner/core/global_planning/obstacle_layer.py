@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from fusion_planner.core.errors import InvalidInput
+from fusion_planner.core.global_planning import beam_cells
 from fusion_planner.core.grid import GridMap
 
 #: Returns within this many cells of a map obstacle are explained by the map [cells].
@@ -188,7 +189,7 @@ class ObstacleLayer:
         """Sorted unique flat indices of the cells holding ``points`` that lie in the grid."""
         cells = self.grid.cell_of(points) if len(points) else np.empty((0, 2), np.int64)
         cells = cells[self.grid.contains(cells)]
-        return np.unique(np.ravel_multi_index((cells[:, 0], cells[:, 1]), self.grid.shape))
+        return _sorted_unique(cells[:, 0] * self.grid.width + cells[:, 1])
 
     def _marked_cells(self, origin, returns):
         """Cells of the returns within ``mark_range`` that the map does not explain."""
@@ -204,8 +205,13 @@ class ObstacleLayer:
             flat = flat[(clearance > margin * self.grid.resolution) & (edge > margin)]
         return flat
 
-    def _cleared_cells(self, origin, ends, hit):
-        """Cells the beams crossed: up to half a cell before a return, else to the range."""
+    def _cleared_cells(self, origin, ends, hit, compiled=True):
+        """Cells the beams crossed: up to half a cell before a return, else to the range.
+
+        The beams are sampled every half cell; ``compiled`` takes the cells
+        of the samples with :mod:`beam_cells` when numba is installed (the
+        same cells).
+        """
         if not len(ends):
             return np.empty(0, dtype=np.int64)
         offset = ends - origin
@@ -214,13 +220,29 @@ class ObstacleLayer:
         reach = np.minimum(np.where(hit, length - self.grid.resolution / 2, length),
                            self.clear_range)
         counts = np.maximum(np.floor(reach / step).astype(np.int64) + 1, 0)
-        counts[reach < 0] = 0
+        counts[(reach < 0) | (length == 0)] = 0  # a beam of length zero has no direction
+        unit = np.divide(offset, length[:, None], out=np.zeros_like(offset),
+                         where=length[:, None] > 0)
+        flat = beam_cells.sampled_cells(self.grid, origin, unit, counts, step) \
+            if compiled else None
+        if flat is not None:
+            return _sorted_unique(flat)
         beam = np.repeat(np.arange(len(ends)), counts)
-        if not len(beam):
-            return np.empty(0, dtype=np.int64)
         first = np.cumsum(counts) - counts
         along = (np.arange(len(beam)) - first[beam]) * step
-        with np.errstate(invalid='ignore', divide='ignore'):
-            unit = offset / length[:, None]
-        samples = origin + unit[beam] * along[:, None]
-        return self._flat_inside(samples[np.all(np.isfinite(samples), axis=1)])
+        return self._flat_inside(origin + unit[beam] * along[:, None])
+
+
+def _sorted_unique(flat):
+    """The sorted distinct values of int64 ``flat``.
+
+    A mask over the span of the values sorts and dedups in one pass, where
+    ``np.unique`` sorts all of them (a scan's samples repeat each cell a few
+    times).
+    """
+    if not len(flat):
+        return flat
+    low = flat.min()
+    mask = np.zeros(flat.max() - low + 1, dtype=bool)
+    mask[flat - low] = True
+    return np.flatnonzero(mask) + low

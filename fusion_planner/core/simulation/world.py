@@ -67,6 +67,7 @@ import numpy as np
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
+from fusion_planner.core.simulation import ray_kernel
 
 LOGGER = logging.getLogger(__name__)
 
@@ -481,7 +482,8 @@ def ray_box_distances(origin, directions, mins, maxs):
     return t.min(axis=1)
 
 
-def ray_grid_distances(occupied, origin, directions, max_distance, chunk=RAY_CHUNK_CELLS):
+def ray_grid_distances(occupied, origin, directions, max_distance, chunk=RAY_CHUNK_CELLS,
+                       compiled=True):
     """Distance along rays to the first occupied cell or the grid edge.
 
     Works in continuous grid coordinates (cell ``(r, c)`` is the unit square
@@ -498,6 +500,9 @@ def ray_grid_distances(occupied, origin, directions, max_distance, chunk=RAY_CHU
         Ignore hits beyond this distance [cells].
     chunk : float, optional
         Length [cells] of ray examined per pass.
+    compiled : bool, optional
+        Walk the rays with :func:`~fusion_planner.core.simulation.ray_kernel.first_blocked`
+        when numba is installed (the same distances, about ten times faster).
 
     Returns
     -------
@@ -522,6 +527,10 @@ def ray_grid_distances(occupied, origin, directions, max_distance, chunk=RAY_CHU
     cx, cy = math.floor(px), math.floor(py)
     if not (0 <= cx < width and 0 <= cy < height) or occupied[cy, cx]:
         return np.zeros(n)
+    t_hit = ray_kernel.first_blocked(occupied, origin, directions, max_distance) \
+        if compiled else None
+    if t_hit is not None:
+        return t_hit
     # per family (crossings of vertical lines: axis 0, horizontal: axis 1)
     start = np.array([px, py])
     cell = np.array([cx, cy])
