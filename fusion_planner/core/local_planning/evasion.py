@@ -19,7 +19,10 @@ Rollout
     waypoint leg).
 Check
     A command is safe when its rollout keeps :data:`MOVING_MARGIN` from
-    every grown obstacle.
+    every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
+    it also from each obstacle walking back at its speed (a person ahead may
+    turn round; :func:`turning_round`). The evasion's candidates are judged
+    against both as well.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
