@@ -220,8 +220,7 @@ def turning_round(tracked):
     """
     back = tracked.copy()
     back[:, 2:4] *= -1.0
-    until = np.concatenate([np.full(len(tracked), HORIZON), np.full(len(tracked),
-                                                                    TURN_ROUND_HORIZON)])
+    until = np.repeat([HORIZON, TURN_ROUND_HORIZON], len(tracked))
     return np.vstack([tracked, back]), until
 
 
