@@ -398,6 +398,19 @@ def test_evasion_keeps_a_safe_command():
     assert evade_now((0.5, 0.1), np.zeros((0, 5))) == (0.5, 0.1, False)
 
 
+def test_evasion_keeps_room_for_a_person_ahead_to_turn_round():
+    """Following a person closely is safe only if it could stop should the person turn round."""
+    p = params()
+    following = np.array([0.3, 0.0])                   # robot at 0.3 m/s behind a person at 0.3
+    ahead = np.array([[0.9, 0.0, 0.3, 0.0, 0.25]])     # gap 0.45 m, walking away
+    v, _, evading = evasion.evade(np.zeros(3), following, (0.3, 0.0), np.array([1.0, 0.0]),
+                                  ahead, np.zeros((0, 2)), p)
+    assert evading and v < 0.3
+    far_ahead = ahead + [[1.5, 0.0, 0.0, 0.0, 0.0]]
+    assert evasion.evade(np.zeros(3), following, (0.3, 0.0), np.array([1.0, 0.0]),
+                         far_ahead, np.zeros((0, 2)), p) == (0.3, 0.0, False)
+
+
 #: A slit 0.9 m wide along x: no room to step aside of a person in it.
 SLIT = np.vstack([wall((-2.0, -0.45), (3.0, -0.45), spacing=0.05),
                   wall((-2.0, 0.45), (3.0, 0.45), spacing=0.05)])

@@ -19,7 +19,10 @@ Rollout
     waypoint leg).
 Check
     A command is safe when its rollout keeps :data:`MOVING_MARGIN` from
-    every grown obstacle.
+    every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
+    it also from each obstacle walking back at its speed (a person ahead may
+    turn round; :func:`turning_round`). The evasion's candidates are judged
+    against both as well.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
@@ -81,6 +84,12 @@ MOVING_MARGIN = 0.1
 #: Growth [m/s] of a tracked obstacle's radius per second of look-ahead: the
 #: prediction goes on straight, the obstacle may turn.
 UNCERTAINTY_RATE = 0.1
+
+#: A person may turn round at any moment (the end of a walk, a change of
+#: mind): for this long [s] of the look-ahead every tracked obstacle is also
+#: checked walking back at its speed. Long enough for the robot to stop from
+#: its top speed; short enough not to hold it far behind a person it follows.
+TURN_ROUND_HORIZON = 1.0
 
 #: Clearance [m] an evasive rollout must keep from static points (or the
 #: present clearance if that is smaller: never closer than now).
@@ -166,7 +175,7 @@ def rollout(pose, velocity, targets, params):
     return np.stack([x, y], axis=-1)
 
 
-def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE):
+def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, until=None):
     """Gap [m] between each rollout sample and the nearest predicted, grown tracked obstacle.
 
     Parameters
@@ -179,19 +188,47 @@ def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE):
         [m].
     growth : float
         Growth of the obstacles' radii [m/s] over the look-ahead.
+    until : ndarray, shape (K,), optional
+        Look-ahead [s] over which each obstacle counts (later samples do
+        not see it); default the whole horizon for every one.
 
     Returns
     -------
     ndarray, float64, shape (C, T)
         Distance from the robot's boundary to the nearest obstacle predicted
         at constant velocity, its radius grown by ``growth * t``; negative:
-        predicted contact.
+        predicted contact; ``inf`` where none counts.
     """
     times = _times()[:, None]                                                  # (T, 1)
     dx = paths[:, :, 0:1] - (tracked[:, 0] + times * tracked[:, 2])            # (C, T, K)
     dy = paths[:, :, 1:2] - (tracked[:, 1] + times * tracked[:, 3])
     reach = robot_radius + tracked[:, 4] + growth * times                      # (T, K)
-    return (np.sqrt(dx * dx + dy * dy) - reach).min(axis=2)
+    gaps = np.sqrt(dx * dx + dy * dy) - reach
+    if until is not None:
+        gaps = np.where(times <= until + CLEARANCE_EPS, gaps, math.inf)
+    return gaps.min(axis=2)
+
+
+def turning_round(tracked):
+    """Each tracked obstacle as it goes on and as it would walk back.
+
+    Parameters
+    ----------
+    tracked : ndarray, shape (K, 5)
+        ``x, y, vx, vy, radius``.
+
+    Returns
+    -------
+    movers : ndarray, shape (2K, 5)
+        ``tracked``, then the same rows with the velocity reversed.
+    until : ndarray, shape (2K,)
+        Look-ahead [s] each counts for: the whole horizon, then
+        :data:`TURN_ROUND_HORIZON`.
+    """
+    back = tracked.copy()
+    back[:, 2:4] *= -1.0
+    until = np.repeat([HORIZON, TURN_ROUND_HORIZON], len(tracked))
+    return np.vstack([tracked, back]), until
 
 
 def static_clearance(q, paths, points, tracked, robot_radius):
@@ -306,10 +343,11 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     tracked = _relevant(q, tracked, params)
     if len(tracked) == 0:
         return command[0], command[1], False
+    movers, until = turning_round(tracked)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
-    if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), tracked, radius)) \
-            >= MOVING_MARGIN:
+    if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), movers, radius,
+                            until=until)) >= MOVING_MARGIN:
         return command[0], command[1], False
     targets = np.vstack([nominal, _targets(params)])
     paths = rollout(pose, velocity, targets, params)
@@ -319,11 +357,12 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     if not np.any(allowed):
         allowed = blocked == np.max(blocked)
     paths = _held(paths, q, blocked)
-    gaps = obstacle_gaps(paths, tracked, radius)
+    gaps = obstacle_gaps(paths, movers, radius, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
-        & np.all(obstacle_gaps(paths, tracked, radius, growth=0.0) >= YIELD_MARGIN, axis=1)
+        & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= YIELD_MARGIN,
+                 axis=1)
     if np.any(yielding):
         allowed = yielding
         if np.any(yielding & (progress >= 0.0)):
