@@ -654,6 +654,37 @@ def scan_to_points(msg, robot_pose, frame_id=None, what='scan'):
     return ends[hit]
 
 
+def check_scan_header(msg, frame_id=None, what='scan'):
+    """The beam geometry of a ``sensor_msgs/LaserScan``, checked; its ranges are not read.
+
+    Returns
+    -------
+    angle_min, angle_increment, range_min, range_max : float
+        [rad, rad, m, m].
+
+    Raises
+    ------
+    InvalidInput
+        Non-finite ``angle_min``; ``angle_increment`` not a positive finite
+        number; ``range_min``/``range_max`` not finite, ``range_min < 0``,
+        ``range_max <= range_min`` or ``range_max`` beyond
+        :data:`MAX_COORDINATE_M`; a frame other than ``frame_id`` (when given).
+    """
+    if frame_id is not None:
+        check_frame(msg.header.frame_id, frame_id, what)
+    angle_min = _finite(msg.angle_min, f'{what} angle_min')
+    increment = _finite(msg.angle_increment, f'{what} angle_increment')
+    if increment <= 0:
+        raise InvalidInput(f'{what} angle_increment must be positive, got {increment!r}')
+    range_min = _finite(msg.range_min, f'{what} range_min')
+    range_max = _finite(msg.range_max, f'{what} range_max', MAX_COORDINATE_M)
+    if range_min < 0 or range_max <= range_min:
+        raise InvalidInput(
+            f'{what} range limits must satisfy 0 <= range_min < range_max, '
+            f'got [{range_min!r}, {range_max!r}]')
+    return angle_min, increment, range_min, range_max
+
+
 def scan_to_rays(msg, robot_pose, frame_id=None, what='scan'):
     """Where each usable beam of a ``sensor_msgs/LaserScan`` ended, in the map frame.
 
@@ -694,19 +725,8 @@ def scan_to_rays(msg, robot_pose, frame_id=None, what='scan'):
     frame. ``intensities`` is never read, so a length that disagrees with
     ``ranges`` does no harm. Vectorised: no Python loop over beams.
     """
-    if frame_id is not None:
-        check_frame(msg.header.frame_id, frame_id, what)
+    angle_min, increment, range_min, range_max = check_scan_header(msg, frame_id, what)
     x, y, yaw = (_finite(v, f'robot pose for {what}') for v in robot_pose)
-    angle_min = _finite(msg.angle_min, f'{what} angle_min')
-    increment = _finite(msg.angle_increment, f'{what} angle_increment')
-    if increment <= 0:
-        raise InvalidInput(f'{what} angle_increment must be positive, got {increment!r}')
-    range_min = _finite(msg.range_min, f'{what} range_min')
-    range_max = _finite(msg.range_max, f'{what} range_max', MAX_COORDINATE_M)
-    if range_min < 0 or range_max <= range_min:
-        raise InvalidInput(
-            f'{what} range limits must satisfy 0 <= range_min < range_max, '
-            f'got [{range_min!r}, {range_max!r}]')
     ranges = np.asarray(msg.ranges, dtype=float)
     if ranges.ndim != 1:
         raise InvalidInput(f'{what} ranges must be a flat sequence of numbers')

@@ -26,7 +26,7 @@ from fusion_planner.ros.conversions import yaw_of_quaternion
 from fusion_planner.ros.timed_pose import pose_at
 
 #: Odometry messages remembered to find the pose at a stamp [1].
-ODOM_HISTORY = 64
+ODOM_HISTORY = 512
 
 
 def compose(a, b):
@@ -107,8 +107,16 @@ class Localization:
                               np.array(velocity, dtype=float)))
 
     def add_localization(self, stamp, pose):
-        """A map-frame pose of the robot at ``stamp`` [s]; False before any odometry."""
+        """A map-frame pose of the robot at ``stamp`` [s]; False when it cannot be paired.
+
+        A pose older than the whole odometry history pairs with the oldest
+        odometry: right for the first one (AMCL's latched pose of a robot
+        that has not moved yet), off by the distance driven in between for a
+        late one, which is left unused once there is a correction.
+        """
         if self.same_frame or not self.odometry:
+            return False
+        if 0 < stamp < self.odometry[0][0] and self.map_from_odom is not None:
             return False
         odom_pose = self.odom_pose_at(stamp) if stamp > 0 else self.odometry[-1][1]
         self.map_from_odom = map_from_odom(pose, odom_pose)

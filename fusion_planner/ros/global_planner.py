@@ -607,12 +607,13 @@ class GlobalPlannerNode(ManagedNode):
         if self._layer is None or not self._poses:
             return  # no map to mark on, or no pose to place the beams with
         params = self._params.current
+        frame = msg.header.frame_id if self._tf is not None else params.laser_frame_id
+        conv.check_scan_header(msg, frame, 'scan')  # a bad scan is refused even when not used
         now = self._now_s()
         if now - self._layer_updated < params.obstacle_update_period:
             return  # persistence is measured in seconds: every scan is not needed
         stamp = conv.stamp_to_seconds(msg.header.stamp)
         if self._tf is not None:
-            frame = msg.header.frame_id
             laser = self._tf.scan_pose(params.frame_id, frame)
             pose = self._poses[-1][1]
         else:
@@ -620,7 +621,6 @@ class GlobalPlannerNode(ManagedNode):
             if pose is None:
                 pose = pose_at(self._poses, stamp, POSE_EXTRAPOLATION_S) if stamp > 0 \
                     else self._poses[-1][1]
-            frame = params.laser_frame_id
             laser = frames.compose(pose, (params.laser_x, params.laser_y, params.laser_yaw))
         ends, hit = conv.scan_to_rays(msg, tuple(laser), frame, 'scan')
         self._layer_updated = now
