@@ -452,3 +452,19 @@ def test_points_marker_and_delete_all():
     assert [(p.x, p.y) for p in marker.points] == [(0.0, 1.0), (2.0, 3.0)]
     assert conv.points_marker(np.zeros((0, 2)), 'map', stamp(), 'x').points == []
     assert conv.delete_all_marker('map', stamp()).action == Marker.DELETEALL
+
+
+# -- map -> odom correction ------------------------------------------------------------
+
+def test_a_localization_pose_older_than_the_odometry_history_keeps_the_correction():
+    from fusion_planner.ros.frames import ODOM_HISTORY, Localization
+    localization = Localization(max_gap=0.5)
+    localization.add_odometry(1.0, (0.0, 0.0, 0.0), (0.0, 0.0))
+    assert localization.add_localization(0.5, np.array([2.0, 1.0, 0.0]))  # the first: taken
+    np.testing.assert_allclose(localization.map_from_odom, [2.0, 1.0, 0.0])
+    for k in range(ODOM_HISTORY):              # the robot drives 1 m/s along x from t = 2 s
+        localization.add_odometry(2.0 + 0.1 * k, (0.1 * k, 0.0, 0.0), (1.0, 0.0))
+    assert not localization.add_localization(1.5, np.array([9.0, 9.0, 0.0]))  # too late to pair
+    np.testing.assert_allclose(localization.map_from_odom, [2.0, 1.0, 0.0])
+    assert localization.add_localization(3.0, np.array([3.0, 1.0, 0.0]))  # within the history
+    np.testing.assert_allclose(localization.map_from_odom, [2.0, 1.0, 0.0], atol=1e-9)
