@@ -142,11 +142,17 @@ class Run:
         cli_args = ['--ros-args', *ros_args] if ros_args else None
         self.monitor = Node('test_monitor', context=context, cli_args=cli_args)
         self.nodes.append(self.monitor)
-        demo.attach_recorder(self.monitor, self.recorder)
+        diagnostics_sub = demo.attach_recorder(self.monitor, self.recorder)
         self.executor = SingleThreadedExecutor(context=context)
+        self.tick = lambda: None  # in one process the simulator sends the goal
         if in_process:
             self.nodes += demo.make_nodes(context, self.params, ros_args)
         else:
+            # Discovery can outlast a fast run: as the demo does, the monitor
+            # sends the goal once it hears every node (the world waits for it).
+            self.params['simulator']['publish_goal'] = False
+            self.tick = demo.goal_when_heard(self.monitor, diagnostics_sub, self.recorder,
+                                             self.scenario.goal)
             env = dict(os.environ)
             env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(REPO), env.get('PYTHONPATH')]))
             self.procs = start_node_processes(self.params, ros_args, log_dir, env)
@@ -162,7 +168,8 @@ class Run:
 
     def wait_arrival(self, time_limit_s=SIM_TIME_LIMIT_S, wall_limit_s=WALL_LIMIT_S):
         """None on arrival, else the failure sentence."""
-        failure = demo.watch(self.recorder, time_limit_s, wall_limit_s, self.alive)
+        failure = demo.watch(self.recorder, time_limit_s, wall_limit_s, self.alive,
+                             tick=self.tick)
         self.wall_time = time.monotonic() - self.wall_start
         return failure
 
@@ -170,6 +177,7 @@ class Run:
         """Poll ``condition()`` until true or the wall limit; returns its last value."""
         deadline = time.monotonic() + wall_limit_s
         while time.monotonic() < deadline:
+            self.tick()
             value = condition()
             if value:
                 return value

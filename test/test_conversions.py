@@ -468,3 +468,19 @@ def test_a_localization_pose_older_than_the_odometry_history_keeps_the_correctio
     np.testing.assert_allclose(localization.map_from_odom, [2.0, 1.0, 0.0])
     assert localization.add_localization(3.0, np.array([3.0, 1.0, 0.0]))  # within the history
     np.testing.assert_allclose(localization.map_from_odom, [2.0, 1.0, 0.0], atol=1e-9)
+
+
+def test_a_localization_pose_before_any_odometry_is_kept_for_the_first_odometry():
+    # AMCL's latched pose reaches a new subscriber at once, often before odometry does.
+    from fusion_planner.ros.frames import Localization
+    localization = Localization(max_gap=0.5)
+    assert not localization.add_localization(0.5, np.array([1.0, 2.0, math.pi / 2]))
+    assert localization.map_from_odom is None
+    assert localization.add_odometry(1.0, (0.0, 0.0, 0.0), (0.0, 0.0))  # now paired
+    np.testing.assert_allclose(localization.map_from_odom, [1.0, 2.0, math.pi / 2])
+    assert not localization.add_odometry(1.1, (0.1, 0.0, 0.0), (1.0, 0.0))  # used once
+    localization.clear()
+    localization.add_localization(0.5, np.array([1.0, 2.0, 0.0]))
+    localization.clear()  # a clock reset forgets a kept pose too
+    assert not localization.add_odometry(1.0, (0.0, 0.0, 0.0), (0.0, 0.0))
+    assert localization.map_from_odom is None

@@ -46,14 +46,6 @@ def free_running(overrides=None):
     return merged
 
 
-#: The local planner's map -> odom correction can be taken from a localization
-#: pose paired with odometry of another time when the loop runs fast on an idle
-#: machine: it then arrives short of the goal in ground truth. Open bug.
-LOCALIZATION_RACE = pytest.mark.xfail(
-    strict=False, reason='map -> odom correction paired with odometry of another time '
-                         'on a fast idle run: the robot arrives short in ground truth')
-
-
 @pytest.fixture
 def scenario(tmp_path):
     return write_scenario(tmp_path / 'scenario', 'stack', start=(1.05, 1.05, 0.0),
@@ -66,7 +58,6 @@ def odometry_drift(start, odom, truth):
     return math.hypot(odom_in_map[0] - truth[0], odom_in_map[1] - truth[1])
 
 
-@LOCALIZATION_RACE
 def test_drifting_odometry_and_stamped_commands_reach_the_goal_judged_in_ground_truth(
         context, scenario, tmp_path):
     run = Run(context, scenario, in_process=False, log_dir=tmp_path / 'logs',
@@ -93,7 +84,6 @@ def test_drifting_odometry_and_stamped_commands_reach_the_goal_judged_in_ground_
         assert code == 0 and 'Traceback' not in log, f'{name}: exit {code}\n{log[-3000:]}'
 
 
-@LOCALIZATION_RACE
 def test_cancel_stops_the_robot_and_nothing_resumes(context, scenario, tmp_path):
     run = Run(context, scenario, in_process=False, log_dir=tmp_path / 'logs',
               overrides=free_running())
@@ -130,8 +120,6 @@ def amcl_pose(node, x, y, yaw, frame='map', covariance=0.01):
     return msg
 
 
-@pytest.mark.xfail(strict=False, reason='intermittent on an idle machine: the robot does not '
-                                        'move after the one volatile plan (cause not found yet)')
 def test_local_planner_takes_a_latched_pose_and_a_volatile_plan_and_is_silent_when_idle(context):
     manager = Manager(context, 'local_planner', odom_frame='odom')  # odometry, scans, cmd_vel
     node = manager.node

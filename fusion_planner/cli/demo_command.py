@@ -474,7 +474,10 @@ class RunRecorder:
 
 
 def attach_recorder(node, recorder):
-    """Subscribe a (monitor) node's topics into a :class:`RunRecorder`."""
+    """Subscribe a (monitor) node's topics into a :class:`RunRecorder`.
+
+    Returns the ``/diagnostics`` subscription (see :func:`goal_when_heard`).
+    """
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry, Path
     from rosgraph_msgs.msg import Clock
@@ -488,8 +491,8 @@ def attach_recorder(node, recorder):
     node.create_subscription(MarkerArray, 'obstacles', recorder.on_obstacles, 10)
     node.create_subscription(Path, 'plan', recorder.on_plan, LATCHED_QOS)
     namespace = node.get_namespace()
-    node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC,
-                             lambda msg: recorder.on_diagnostics(msg, namespace), 50)
+    return node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC,
+                                    lambda msg: recorder.on_diagnostics(msg, namespace), 50)
 
 
 # -- running ------------------------------------------------------------------------
@@ -646,19 +649,20 @@ def watch(recorder, time_limit_s, wall_limit_s, alive=lambda: None, progress=Non
     return f'wall time limit of {wall_limit_s:.0f} s reached'
 
 
-def goal_when_heard(node, recorder, goal):
+def goal_when_heard(node, diagnostics_sub, recorder, goal):
     """A ``tick`` for :func:`watch` that sends ``goal`` once the monitor hears every node.
 
     With the nodes in other processes, DDS discovery can take longer than a
     fast run: the monitor sends the goal itself (the simulator's
-    ``publish_goal`` off) once it has heard the simulator's ground truth and
-    knows the diagnostics publishers of the three nodes. The world is held
-    until the first plan, so nothing of the run is missed.
+    ``publish_goal`` off) once it has heard the simulator's ground truth
+    and its ``/diagnostics`` subscription ``diagnostics_sub`` is matched to
+    every diagnostics publisher in the graph, the three nodes under its
+    namespace among them. The world is held until the first plan, so
+    nothing of the run is missed: neither the first poses nor a status.
     """
     from geometry_msgs.msg import PoseStamped
 
     from fusion_planner.ros.conversions import seconds_to_stamp
-    from fusion_planner.ros.diagnostics import DIAGNOSTICS_TOPIC
     from fusion_planner.ros.goal_sender import GoalSender
     from fusion_planner.ros.qos import RELIABLE_QOS
 
@@ -667,10 +671,31 @@ def goal_when_heard(node, recorder, goal):
     def tick():
         if recorder.plan is not None:
             sender.on_plan()
-        elif recorder.pose_times and node.count_publishers(DIAGNOSTICS_TOPIC) >= len(NODES):
+        elif recorder.pose_times and nodes_heard(node, diagnostics_sub):
             # in the simulator's default frame, which the demo keeps
             sender.poll(goal, 'map', seconds_to_stamp(recorder.sim_time))
     return tick
+
+
+def nodes_heard(node, diagnostics_sub):
+    """Whether ``diagnostics_sub`` of ``node`` is matched to the three nodes in its namespace.
+
+    The graph must know each of :data:`NODES` under ``node``'s namespace
+    with a ``/diagnostics`` publisher, and the subscription must be matched
+    to as many publishers as the graph has (a graph entry comes before its
+    match).
+    """
+    from fusion_planner.ros.diagnostics import DIAGNOSTICS_TOPIC
+
+    namespace = node.get_namespace()
+    known = set(node.get_node_names_and_namespaces())
+    for name in NODES:
+        if (name, namespace) not in known:
+            return False
+        topics = node.get_publisher_names_and_types_by_node(name, namespace)
+        if DIAGNOSTICS_TOPIC not in (topic for topic, _ in topics):
+            return False
+    return diagnostics_sub.get_publisher_count() >= node.count_publishers(DIAGNOSTICS_TOPIC)
 
 
 class Spinner:
@@ -804,7 +829,7 @@ def run(args):
         # on simulated time: the recording is stamped with it
         nodes.append(Node('demo_monitor', context=context,
                           parameter_overrides=[Parameter('use_sim_time', value=True)]))
-        attach_recorder(nodes[0], recorder)
+        diagnostics_sub = attach_recorder(nodes[0], recorder)
         if mcap_path is not None:
             topic_recorder = start_recording(nodes[0], mcap_path)
         executor = make_executor(context)
@@ -812,7 +837,7 @@ def run(args):
         tick = lambda: None  # noqa: E731 - nothing to do each poll in one process
         if args.processes:
             params['simulator']['publish_goal'] = False
-            tick = goal_when_heard(nodes[0], recorder, scenario.goal)
+            tick = goal_when_heard(nodes[0], diagnostics_sub, recorder, scenario.goal)
             procs = start_processes(params, share_file('config/params.yaml'), log_dir)
 
             def alive():

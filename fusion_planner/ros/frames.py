@@ -93,28 +93,44 @@ class Localization:
         self.same_frame = bool(same_frame)
         self.odometry = collections.deque(maxlen=ODOM_HISTORY)  # (stamp, pose, velocity)
         self.map_from_odom = np.zeros(3) if same_frame else None
+        self.pending = None  # (stamp, pose) of a localization that came before any odometry
 
     def clear(self):
         """Forget odometry and correction (a clock reset)."""
         self.odometry.clear()
         self.map_from_odom = np.zeros(3) if self.same_frame else None
+        self.pending = None
 
     def add_odometry(self, stamp, pose, velocity):
-        """Odometry: ``stamp`` [s], ``pose`` (3,) in odom, ``velocity`` (v, omega)."""
+        """Odometry: ``stamp`` [s], ``pose`` (3,) in odom, ``velocity`` (v, omega).
+
+        Returns True when a localization pose kept for want of odometry
+        (see :meth:`add_localization`) has now made the correction.
+        """
         if self.odometry and stamp < self.odometry[-1][0]:
             self.odometry.clear()  # stamps went back (a simulation reset)
         self.odometry.append((stamp, np.array(pose, dtype=float),
                               np.array(velocity, dtype=float)))
+        if self.pending is None:
+            return False
+        kept, self.pending = self.pending, None
+        return self.add_localization(*kept)
 
     def add_localization(self, stamp, pose):
-        """A map-frame pose of the robot at ``stamp`` [s]; False when it cannot be paired.
+        """A map-frame pose of the robot at ``stamp`` [s]; False when it cannot be paired now.
 
-        A pose older than the whole odometry history pairs with the oldest
-        odometry: right for the first one (AMCL's latched pose of a robot
-        that has not moved yet), off by the distance driven in between for a
-        late one, which is left unused once there is a correction.
+        A pose that comes before any odometry (AMCL's latched pose is
+        delivered as soon as the subscription matches) is kept and paired
+        with the first odometry (:meth:`add_odometry`). A pose older
+        than the whole odometry history pairs with the oldest odometry:
+        right for the first one (the latched pose of a robot that has not
+        moved yet), off by the distance driven in between for a late one,
+        which is left unused once there is a correction.
         """
-        if self.same_frame or not self.odometry:
+        if self.same_frame:
+            return False
+        if not self.odometry:
+            self.pending = (stamp, np.array(pose, dtype=float))
             return False
         if 0 < stamp < self.odometry[0][0] and self.map_from_odom is not None:
             return False

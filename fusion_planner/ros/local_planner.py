@@ -618,7 +618,8 @@ class LocalPlannerNode(ManagedNode):
             self._odom = (stamp, np.array(pose), np.array(velocity))
             self._odom_stamp = msg.header.stamp  # exact, for a TwistStamped answering it
             self._odom_received = self._now_s()
-            self._localization.add_odometry(*self._odom)
+            if self._localization.add_odometry(*self._odom):
+                self._bring_plan_over()  # with the localization that came first
 
     def _on_localization(self, msg):
         """A map-frame pose: the map -> odom correction at its stamp."""
