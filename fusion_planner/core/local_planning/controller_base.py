@@ -97,6 +97,10 @@ class FollowerParams:
         their current position, as in the paper).
     heading_gain : float
         Turn rate per radian of heading error [1/s], > 0.
+    route_heading_gain : float
+        The same for a route follower (fusion) [1/s], > 0: a route
+        between posts leaves the robot a few centimetres on either side,
+        and a slow heading response lets it swing across them.
     approach_gain : float
         Speed per metre of distance to the final goal [1/s], > 0.
     safety_distance : float
@@ -138,6 +142,7 @@ class FollowerParams:
     robot_radius: float = 0.2
     prediction_horizon: float = 2.0
     heading_gain: float = 2.5
+    route_heading_gain: float = 5.0
     approach_gain: float = 0.8
     safety_distance: float = 0.02
     sight_clearance: float = 0.3
@@ -151,7 +156,7 @@ class FollowerParams:
                 f'FollowerParams.apf must be an ApfParams, got {type(self.apf).__name__}')
         for name in ('max_speed', 'max_accel', 'max_omega', 'max_alpha', 'goal_tolerance',
                      'lookahead', 'control_period', 'stuck_window', 'stuck_progress',
-                     'escape_time_limit', 'heading_gain', 'approach_gain', 'wall_distance',
+                     'escape_time_limit', 'heading_gain', 'route_heading_gain', 'approach_gain', 'wall_distance',
                      'point_spacing', 'visibility_range'):
             _check_number(getattr(self, name), name)
         for name in ('robot_radius', 'prediction_horizon', 'safety_distance', 'sight_clearance'):
@@ -477,11 +482,16 @@ class ControllerBase:
         LOGGER.warning('controller failed: %s', reason)
         return self._stop(obs, 'failed', reason, sub_goal)
 
-    def _steer(self, heading, v_cap, obs):
-        """Heading control toward ``heading`` [rad] with forward speed at most ``v_cap``."""
+    def _steer(self, heading, v_cap, obs, gain=None):
+        """Heading control toward ``heading`` [rad] with forward speed at most ``v_cap``.
+
+        ``gain`` [1/s] is the turn rate per radian of heading error
+        (default ``heading_gain``).
+        """
         p = self.params
+        gain = p.heading_gain if gain is None else gain
         error = wrap_angle(heading - obs.pose[2])
-        turn = min(p.heading_gain * abs(error), math.sqrt(2.0 * p.max_alpha * abs(error)),
+        turn = min(gain * abs(error), math.sqrt(2.0 * p.max_alpha * abs(error)),
                    p.max_omega)
         omega = math.copysign(turn, error)
         v = min(p.max_speed, v_cap) * max(0.0, math.cos(error))**2

@@ -884,7 +884,8 @@ class FieldFollower(ControllerBase):
             v_cap = min(v_cap, turn_cap(self._route, self._route.station, p))
             if abs(wrap_angle(heading - obs.pose[2])) > ROTATE_FIRST_RAD:
                 v_cap = 0.0  # turn toward the route on the spot first
-        return self._steer(heading, v_cap, obs)
+        return self._steer(heading, v_cap, obs,
+                           gain=p.route_heading_gain if self._route is not None else None)
 
     def _evade(self, obs, scene, command, desired):
         """``command`` within the limits, or an evasive one if it runs into a moving obstacle.
