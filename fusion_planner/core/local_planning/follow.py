@@ -59,7 +59,8 @@ holds every number):
 
 1. a desired direction: the total force (fields) or the boundary tangent
    (escape);
-2. heading control: ``omega`` proportional to the heading error, capped so
+2. heading control: ``omega`` proportional to the heading error
+   (``heading_gain``; ``route_heading_gain`` for fusion on its route), capped so
    the robot can stop turning in time; forward speed scaled by
    ``cos(error)^2`` (zero beyond 90 degrees: turn in place);
 3. speed caps: approach (``v <= approach_gain * distance to goal``), the
