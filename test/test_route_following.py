@@ -15,6 +15,7 @@ from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.field_follower import FieldFollower
+from fusion_planner.core.local_planning.follow import make_controller
 from fusion_planner.core.local_planning.speed_policy import (
     ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_speed)
 from fusion_planner.core.local_planning.yielding import passing_bounds
@@ -104,6 +105,17 @@ def test_a_robot_far_off_its_direction_turns_on_the_spot_first_and_drives_when_c
     assert standing.v == 0.0 and standing.omega < 0.0
     closer = command(ROTATE_FIRST_RAD - 0.05, 0.0)
     assert closer.v > 0.0
+
+
+@pytest.mark.parametrize('name, gain', [('fusion', 'route_heading_gain'), ('apf', 'heading_gain')])
+def test_fusion_turns_onto_its_route_with_its_own_heading_gain(name, gain):
+    p = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, max_alpha=100.0,
+                       heading_gain=2.0, route_heading_gain=6.0)
+    ctrl = make_controller(name, p)
+    ctrl.set_path(np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([[0.0, 0.0], [5.0, 0.0]]))
+    obs = Observation(pose=np.array([0.0, 0.0, -0.1]), velocity=np.array([0.5, 0.0]),
+                      obstacle_points=np.zeros((0, 2)), tracked=np.zeros((0, 5)), time=0.0)
+    assert ctrl.compute(obs).omega == pytest.approx(getattr(p, gain) * 0.1)
 
 
 # -- progress --------------------------------------------------------------------------------
