@@ -17,7 +17,7 @@ from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.field_follower import FieldFollower
 from fusion_planner.core.local_planning.follow import make_controller
 from fusion_planner.core.local_planning.speed_policy import (
-    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_speed)
+    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_round_error, turn_speed)
 from fusion_planner.core.local_planning.yielding import passing_bounds
 
 PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
@@ -107,15 +107,31 @@ def test_a_robot_far_off_its_direction_turns_on_the_spot_first_and_drives_when_c
     assert closer.v > 0.0
 
 
-@pytest.mark.parametrize('name, gain', [('fusion', 'route_heading_gain'), ('apf', 'heading_gain')])
-def test_fusion_turns_onto_its_route_with_its_own_heading_gain(name, gain):
+@pytest.mark.parametrize('name, period, gain', [('fusion', 0.05, 4.0), ('fusion', 0.1, 2.5),
+                                                ('apf', 0.05, 2.0)])
+def test_fusion_turns_onto_its_route_with_its_own_heading_gain(name, period, gain):
+    """``route_heading_gain`` (4), at most 1 / (4 periods); the field alone keeps ``heading_gain``."""
     p = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, max_alpha=100.0,
-                       heading_gain=2.0, route_heading_gain=6.0)
+                       control_period=period, heading_gain=2.0, route_heading_gain=4.0)
     ctrl = make_controller(name, p)
     ctrl.set_path(np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([[0.0, 0.0], [5.0, 0.0]]))
     obs = Observation(pose=np.array([0.0, 0.0, -0.1]), velocity=np.array([0.5, 0.0]),
                       obstacle_points=np.zeros((0, 2)), tracked=np.zeros((0, 5)), time=0.0)
-    assert ctrl.compute(obs).omega == pytest.approx(getattr(p, gain) * 0.1)
+    assert ctrl.compute(obs).omega == pytest.approx(gain * 0.1)
+
+
+def test_a_robot_turning_round_beside_a_wall_turns_away_from_it():
+    """Driving 0.1 m from a wall on its right, a robot told to turn round clockwise turns left."""
+    pose = np.array([2.0, 0.0, 0.0])
+    wall_right = wall((-1.0, -0.3), (4.0, -0.3))
+    toward_wall = -0.9 * math.pi
+    assert turn_round_error(pose, 0.6, toward_wall, wall_right, PARAMS) == pytest.approx(
+        toward_wall + 2.0 * math.pi)
+    assert turn_round_error(pose, 0.6, -toward_wall, wall_right, PARAMS) == -toward_wall
+    assert turn_round_error(pose, 0.0, toward_wall, wall_right, PARAMS) == toward_wall  # standing
+    assert turn_round_error(pose, 0.6, -1.0, wall_right, PARAMS) == -1.0     # not turning round
+    far = wall((-1.0, -3.0), (4.0, -3.0))
+    assert turn_round_error(pose, 0.6, toward_wall, far, PARAMS) == toward_wall
 
 
 # -- progress --------------------------------------------------------------------------------

@@ -98,9 +98,10 @@ class FollowerParams:
     heading_gain : float
         Turn rate per radian of heading error [1/s], > 0.
     route_heading_gain : float
-        The same for a route follower (fusion) [1/s], > 0: a route
-        between posts leaves the robot a few centimetres on either side,
-        and a slow heading response lets it swing across them.
+        The same for a route follower (fusion) [1/s], > 0, at most
+        ``1 / (4 control_period)`` (:meth:`route_gain`): a route between
+        posts leaves the robot a few centimetres on either side, and a slow
+        heading response lets it swing across them.
     approach_gain : float
         Speed per metre of distance to the final goal [1/s], > 0.
     safety_distance : float
@@ -149,6 +150,15 @@ class FollowerParams:
     wall_distance: float = 0.35
     point_spacing: float = 0.1
     visibility_range: float = 4.0
+
+    def route_gain(self):
+        """The route follower's heading gain [1/s]: ``route_heading_gain``, at most ``1 / (4 control_period)``.
+
+        A proportional heading loop whose command acts one period late
+        (``e[n+1] = e[n] - gain * period * e[n-1]``) is critically damped at
+        ``gain * period = 1/4`` and oscillates above it.
+        """
+        return min(self.route_heading_gain, 0.25 / self.control_period)
 
     def __post_init__(self):
         if not isinstance(self.apf, ApfParams):
@@ -482,15 +492,17 @@ class ControllerBase:
         LOGGER.warning('controller failed: %s', reason)
         return self._stop(obs, 'failed', reason, sub_goal)
 
-    def _steer(self, heading, v_cap, obs, gain=None):
+    def _steer(self, heading, v_cap, obs, gain=None, error=None):
         """Heading control toward ``heading`` [rad] with forward speed at most ``v_cap``.
 
         ``gain`` [1/s] is the turn rate per radian of heading error
-        (default ``heading_gain``).
+        (default ``heading_gain``); ``error`` [rad] the heading error to turn
+        through (default ``heading`` less the yaw, wrapped; beyond pi to
+        turn the long way round).
         """
         p = self.params
         gain = p.heading_gain if gain is None else gain
-        error = wrap_angle(heading - obs.pose[2])
+        error = wrap_angle(heading - obs.pose[2]) if error is None else error
         turn = min(gain * abs(error), math.sqrt(2.0 * p.max_alpha * abs(error)),
                    p.max_omega)
         omega = math.copysign(turn, error)

@@ -58,7 +58,7 @@ from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.speed_policy import (
-    ROTATE_FIRST_RAD, braking_path_gap, turn_cap)
+    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_round_error)
 from fusion_planner.core.local_planning.yielding import passing_bounds
 
 LOGGER = logging.getLogger(__name__)
@@ -880,12 +880,14 @@ class FieldFollower(ControllerBase):
         v_cap = min(p.max_speed * min(1.0, max(MIN_STEP_FRACTION, step / p.apf.l0)),
                     approach, braking_speed(gap, p.max_accel, p.control_period))
         heading = math.atan2(direction[1], direction[0])
+        error = wrap_angle(heading - obs.pose[2])
         if on_route:
             v_cap = min(v_cap, turn_cap(self._route, self._route.station, p))
-            if abs(wrap_angle(heading - obs.pose[2])) > ROTATE_FIRST_RAD:
+            if abs(error) > ROTATE_FIRST_RAD:
                 v_cap = 0.0  # turn toward the route on the spot first
-        return self._steer(heading, v_cap, obs,
-                           gain=p.route_heading_gain if self._route is not None else None)
+                error = turn_round_error(obs.pose, obs.velocity[0], error, points, p)
+        return self._steer(heading, v_cap, obs, error=error,
+                           gain=p.route_gain() if self._route is not None else None)
 
     def _evade(self, obs, scene, command, desired):
         """``command`` within the limits, or an evasive one if it runs into a moving obstacle.
