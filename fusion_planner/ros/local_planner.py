@@ -230,8 +230,9 @@ FOLLOWER_PARAMETERS = {
     'prediction_horizon': ('how far ahead tracked obstacles are predicted; 0: current positions '
                            'only [s]', float_range(0.0, 30.0)),
     'heading_gain': ('turn rate per radian of heading error [1/s]', float_range(0.01, 50.0)),
-    'route_heading_gain': ('turn rate per radian of heading error of the route follower (fusion) '
-                           '[1/s]', float_range(0.01, 50.0)),
+    'route_heading_gain': ('turn rate per radian of heading error of the route follower '
+                           '(fusion), at most 1 / (4 control periods) [1/s]',
+                           float_range(0.01, 50.0)),
     'approach_gain': ('speed cap per metre of distance to the goal [1/s]', float_range(0.01, 50.0)),
     'safety_distance': ('clearance kept straight ahead and required of a free line of sight [m]',
                         float_range(0.0, 10.0)),
