@@ -110,7 +110,7 @@ def test_a_robot_far_off_its_direction_turns_on_the_spot_first_and_drives_when_c
 @pytest.mark.parametrize('name, period, gain', [('fusion', 0.05, 4.0), ('fusion', 0.1, 2.5),
                                                 ('apf', 0.05, 2.0)])
 def test_fusion_turns_onto_its_route_with_its_own_heading_gain(name, period, gain):
-    """``route_heading_gain`` (4), at most 1 / (4 periods); the field alone keeps ``heading_gain``."""
+    """``route_heading_gain`` (4), at most 1 / (4 periods); apf keeps ``heading_gain``."""
     p = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, max_alpha=100.0,
                        control_period=period, heading_gain=2.0, route_heading_gain=4.0)
     ctrl = make_controller(name, p)

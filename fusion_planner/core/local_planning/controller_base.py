@@ -152,7 +152,7 @@ class FollowerParams:
     visibility_range: float = 4.0
 
     def route_gain(self):
-        """The route follower's heading gain [1/s]: ``route_heading_gain``, at most ``1 / (4 control_period)``.
+        """The route follower's heading gain [1/s]: at most ``0.25 / control_period``.
 
         A proportional heading loop whose command acts one period late
         (``e[n+1] = e[n] - gain * period * e[n-1]``) is critically damped at
@@ -166,7 +166,8 @@ class FollowerParams:
                 f'FollowerParams.apf must be an ApfParams, got {type(self.apf).__name__}')
         for name in ('max_speed', 'max_accel', 'max_omega', 'max_alpha', 'goal_tolerance',
                      'lookahead', 'control_period', 'stuck_window', 'stuck_progress',
-                     'escape_time_limit', 'heading_gain', 'route_heading_gain', 'approach_gain', 'wall_distance',
+                     'escape_time_limit', 'heading_gain', 'route_heading_gain', 'approach_gain',
+                     'wall_distance',
                      'point_spacing', 'visibility_range'):
             _check_number(getattr(self, name), name)
         for name in ('robot_radius', 'prediction_horizon', 'safety_distance', 'sight_clearance'):
