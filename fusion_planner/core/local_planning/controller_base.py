@@ -154,9 +154,10 @@ class FollowerParams:
     def route_gain(self):
         """The route follower's heading gain [1/s]: at most ``0.25 / control_period``.
 
-        A proportional heading loop whose command acts one period late
-        (``e[n+1] = e[n] - gain * period * e[n-1]``) is critically damped at
-        ``gain * period = 1/4`` and oscillates above it.
+        ``route_heading_gain``, bounded because a proportional heading loop
+        whose command acts one period late (``e[n+1] = e[n] - gain * period *
+        e[n-1]``) is critically damped at ``gain * period = 1/4`` and
+        oscillates above it.
         """
         return min(self.route_heading_gain, 0.25 / self.control_period)
 
@@ -167,8 +168,7 @@ class FollowerParams:
         for name in ('max_speed', 'max_accel', 'max_omega', 'max_alpha', 'goal_tolerance',
                      'lookahead', 'control_period', 'stuck_window', 'stuck_progress',
                      'escape_time_limit', 'heading_gain', 'route_heading_gain', 'approach_gain',
-                     'wall_distance',
-                     'point_spacing', 'visibility_range'):
+                     'wall_distance', 'point_spacing', 'visibility_range'):
             _check_number(getattr(self, name), name)
         for name in ('robot_radius', 'prediction_horizon', 'safety_distance', 'sight_clearance'):
             _check_number(getattr(self, name), name, strict=False)
