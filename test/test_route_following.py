@@ -15,9 +15,10 @@ from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.field_follower import FieldFollower
+from fusion_planner.core.local_planning.free_arc import turn_round_error
 from fusion_planner.core.local_planning.follow import make_controller
 from fusion_planner.core.local_planning.speed_policy import (
-    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_round_error, turn_speed)
+    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_speed)
 from fusion_planner.core.local_planning.yielding import passing_bounds
 
 PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
@@ -121,17 +122,17 @@ def test_fusion_turns_onto_its_route_with_its_own_heading_gain(name, period, gai
 
 
 def test_a_robot_turning_round_beside_a_wall_turns_away_from_it():
-    """Driving 0.1 m from a wall on its right, a robot told to turn round clockwise turns left."""
+    """Driving 6 cm from a wall on its right, a robot told to turn round clockwise turns left."""
     pose = np.array([2.0, 0.0, 0.0])
-    wall_right = wall((-1.0, -0.3), (4.0, -0.3))
+    wall_right = wall((-1.0, -0.26), (4.0, -0.26))
     toward_wall = -0.9 * math.pi
     assert turn_round_error(pose, 0.6, toward_wall, wall_right, PARAMS) == pytest.approx(
         toward_wall + 2.0 * math.pi)
     assert turn_round_error(pose, 0.6, -toward_wall, wall_right, PARAMS) == -toward_wall
     assert turn_round_error(pose, 0.0, toward_wall, wall_right, PARAMS) == toward_wall  # standing
     assert turn_round_error(pose, 0.6, -1.0, wall_right, PARAMS) == -1.0     # not turning round
-    far = wall((-1.0, -3.0), (4.0, -3.0))
-    assert turn_round_error(pose, 0.6, toward_wall, far, PARAMS) == toward_wall
+    farther = wall((-1.0, -0.5), (4.0, -0.5))                  # the short way's arc is free
+    assert turn_round_error(pose, 0.6, toward_wall, farther, PARAMS) == toward_wall
 
 
 # -- progress --------------------------------------------------------------------------------

@@ -50,7 +50,8 @@ from fusion_planner.core.local_planning.controller_base import (
 from fusion_planner.core.errors import (
     GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlanningError)
 from fusion_planner.core.local_planning.escape import MAX_REPLANS_PER_EPISODE, BoundaryFollow, Episode
-from fusion_planner.core.local_planning.free_arc import free_arc_speed, free_arc_turn
+from fusion_planner.core.local_planning.free_arc import (
+    free_arc_speed, free_arc_turn, turn_round_error)
 from fusion_planner.core.local_planning.local_geometry import (
     braking_speed, circle_points, front_gap, off_circles, points_off_circles, segments_clear,
     thin_points, wrap_angle)
@@ -58,7 +59,7 @@ from fusion_planner.core.local_planning.progress import ProgressMonitor
 from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.speed_policy import (
-    ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_round_error)
+    ROTATE_FIRST_RAD, braking_path_gap, turn_cap)
 from fusion_planner.core.local_planning.yielding import passing_bounds
 
 LOGGER = logging.getLogger(__name__)

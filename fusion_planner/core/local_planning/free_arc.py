@@ -162,3 +162,41 @@ def free_arc_turn(pose, v, turns, omega, points, params):
     if np.any(free):
         return float(candidates[free][np.argmin(np.abs(candidates[free] - omega))])
     return float(candidates[np.argmax(allowed)])
+
+
+def turn_round_error(pose, speed, error, points, params):
+    """The heading error [rad] to turn through when turning round while still moving forward.
+
+    Beyond 90 degrees either way round is at most twice as long as the
+    other, and a robot that brakes while it turns sweeps an arc that curls
+    to the side it turns to: after a new plan that reverses its way beside
+    a wall, the shorter way round may turn it into the wall faster than it
+    can brake (:func:`free_arc_turn` then has only turn rates within
+    ``max_alpha`` of the present one to choose from). Such a robot turns
+    the long way round when the arc of the short one, at its speed and
+    ``max_omega``, is not free to stop on and the long one's is.
+
+    Parameters
+    ----------
+    pose : ndarray, shape (3,)
+        ``x, y, yaw`` [m, m, rad].
+    speed : float
+        Measured forward speed [m/s].
+    error : float
+        Heading error [rad], wrapped to ``[-pi, pi)``.
+    points : ndarray, shape (M, 2)
+        Scan points [m], finite.
+    params : FollowerParams
+
+    Returns
+    -------
+    float
+        ``error``, or ``error -+ 2 pi`` (the long way round).
+    """
+    if abs(error) <= math.pi / 2 or speed <= 0.0 or len(points) == 0:
+        return error
+    short = math.copysign(params.max_omega, error)
+    if free_arc_speed(pose, speed, short, points, params) >= speed \
+            or free_arc_speed(pose, speed, -short, points, params) < speed:
+        return error
+    return error - math.copysign(2.0 * math.pi, error)

@@ -112,51 +112,6 @@ def turn_cap(route, station, params):
     return float(min(p.max_speed, np.min(allowed)))
 
 
-def turn_round_error(pose, speed, error, points, params):
-    """The heading error [rad] to turn through when turning round while still moving forward.
-
-    Beyond 90 degrees either way round is at most twice as long as the
-    other, and a robot that brakes while it turns sweeps an arc that curls
-    to the side it turns to: after a new plan that reverses its way beside
-    a wall, the shorter way round may turn it into the wall faster than it
-    can brake (the free-arc check then has only turn rates within
-    ``max_alpha`` of the present one to choose from). Such a robot turns
-    away from the nearest point within its stopping reach.
-
-    Parameters
-    ----------
-    pose : ndarray, shape (3,)
-        ``x, y, yaw`` [m, m, rad].
-    speed : float
-        Measured forward speed [m/s].
-    error : float
-        Heading error [rad], wrapped to ``[-pi, pi)``.
-    points : ndarray, shape (M, 2)
-        Obstacle points [m].
-    params : FollowerParams
-
-    Returns
-    -------
-    float
-        ``error``, or ``error`` the long way round (``error -+ 2 pi``) when
-        the shorter way turns toward that point.
-    """
-    p = params
-    if abs(error) <= math.pi / 2 or speed <= 0.0 or len(points) == 0:
-        return error
-    d = points - pose[:2]
-    reach = speed**2 / (2.0 * p.max_accel) + speed * p.control_period \
-        + p.robot_radius + p.safety_distance
-    squared = np.einsum('ij,ij->i', d, d)
-    nearest = int(np.argmin(squared))
-    if squared[nearest] > reach * reach:
-        return error
-    side = math.cos(pose[2]) * d[nearest, 1] - math.sin(pose[2]) * d[nearest, 0]  # + on the left
-    if side * error > 0.0:
-        return error - math.copysign(2.0 * math.pi, error)
-    return error
-
-
 def braking_path_gap(pose, route, station, points, blocking, circles, params):
     """Free travel [m] in the braking path: along the route and straight ahead.
 
