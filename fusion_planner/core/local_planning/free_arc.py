@@ -12,7 +12,9 @@ yet tracked as moving).
 
 When the robot cannot brake to that speed within one control period,
 :func:`free_arc_turn` picks, among the turn rates it can reach, one whose
-arc it can stop on.
+arc it can stop on. A robot told to turn round while still moving turns
+the long way round when only that way's arc is free
+(:func:`turn_round_error`).
 
 Stopping on the arc is a manoeuvre the robot can always make: braking at
 ``max_accel`` while the turn rate falls in proportion to the speed keeps the
