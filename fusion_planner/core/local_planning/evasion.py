@@ -26,7 +26,11 @@ Check
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
-    turn rates across ``+-max_omega``) is rolled out the same way and against
+    turn rates across ``+-max_omega``) and of *pivots* (turn on the spot to
+    one of :data:`PIVOT_HEADINGS` headings, then drive straight along it at
+    one of :data:`PIVOT_SPEED_FRACTIONS` of ``max_speed``: the side-step
+    of a robot standing beside a wall, whose every constant arc runs into
+    the wall or towards the person) is rolled out the same way and against
     the static points (scan points not on a tracked obstacle): a rollout that
     would come within :data:`STATIC_MARGIN` of them (or closer than now)
     stops there, pinned, and one that would do so within
@@ -56,8 +60,8 @@ Examples
 >>> walls = np.array([[x, y] for x in np.linspace(-2.0, 3.0, 60) for y in (-0.45, 0.45)])
 >>> v, omega, evading = evade(pose, velocity, (0.0, 0.0), np.array([1.0, 0.0]),
 ...                           walker, walls, p)
->>> evading, v < 0.0                                       # in a slit, it backs away
-(True, True)
+>>> evading, v <= 0.0, omega != 0.0                        # in a slit, it turns round to leave
+(True, True, True)
 """
 
 import math
@@ -119,6 +123,15 @@ SPEED_FRACTIONS = (-1.0, -0.5, 0.0, 0.25, 0.5, 0.75, 1.0)
 #: Target turn rates of the evasive fan, as fractions of ``max_omega``.
 TURN_FRACTIONS = (-1.0, -0.4, 0.0, 0.4, 1.0)
 
+#: Headings of the pivot candidates, evenly spaced round the robot.
+PIVOT_HEADINGS = 8
+
+#: Straight speeds of the pivot candidates, as fractions of ``max_speed``.
+PIVOT_SPEED_FRACTIONS = (0.5, 1.0)
+
+#: A pivot drives on once its heading is off by less than this [rad].
+PIVOT_ALIGNED_RAD = 0.3
+
 #: Intrusions closer than this [m s] count as equal (ties go to progress).
 INTRUSION_TOLERANCE = 1e-6
 
@@ -173,6 +186,46 @@ def rollout(pose, velocity, targets, params):
     x = pose[0] + np.cumsum(v * np.cos(yaw), axis=1) * ROLLOUT_STEP
     y = pose[1] + np.cumsum(v * np.sin(yaw), axis=1) * ROLLOUT_STEP
     return np.stack([x, y], axis=-1)
+
+
+def pivot_command(yaw, headings, speeds, params):
+    """Target ``(P, 2)`` ``v, omega`` of pivots: turn towards ``headings`` [rad], then drive.
+
+    The turn rate closes the heading error within one
+    :data:`ROLLOUT_STEP` (at most ``max_omega``); the speed is ``speeds``
+    [m/s] once the error is below :data:`PIVOT_ALIGNED_RAD`, 0 before.
+    """
+    error = np.angle(np.exp(1j * (headings - yaw)))
+    omega = np.clip(error / ROLLOUT_STEP, -params.max_omega, params.max_omega)
+    return np.column_stack([np.where(np.abs(error) < PIVOT_ALIGNED_RAD, speeds, 0.0), omega])
+
+
+def _pivots(yaw, params):
+    """Headings [rad] and straight speeds [m/s] ``(P,)`` of the pivot candidates."""
+    headings = yaw + np.linspace(0.0, 2.0 * math.pi, PIVOT_HEADINGS, endpoint=False)
+    speeds = np.array(PIVOT_SPEED_FRACTIONS) * params.max_speed
+    h, v = np.meshgrid(headings, speeds, indexing='ij')
+    return h.ravel(), v.ravel()
+
+
+def pivot_rollout(pose, velocity, headings, speeds, params):
+    """Robot positions ``(P, T, 2)`` [m] following each pivot, within the acceleration limits."""
+    x = np.full(len(headings), pose[0])
+    y = np.full(len(headings), pose[1])
+    yaw = np.full(len(headings), pose[2])
+    v = np.full(len(headings), velocity[0])
+    w = np.full(len(headings), velocity[1])
+    dv, dw = params.max_accel * ROLLOUT_STEP, params.max_alpha * ROLLOUT_STEP
+    out = []
+    for _ in _times():
+        target = pivot_command(yaw, headings, speeds, params)
+        v = v + np.clip(target[:, 0] - v, -dv, dv)
+        w = w + np.clip(target[:, 1] - w, -dw, dw)
+        yaw = yaw + w * ROLLOUT_STEP
+        x = x + v * np.cos(yaw) * ROLLOUT_STEP
+        y = y + v * np.sin(yaw) * ROLLOUT_STEP
+        out.append(np.column_stack([x, y]))
+    return np.stack(out, axis=1)
 
 
 def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, until=None):
@@ -349,8 +402,11 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), movers, radius,
                             until=until)) >= MOVING_MARGIN:
         return command[0], command[1], False
-    targets = np.vstack([nominal, _targets(params)])
-    paths = rollout(pose, velocity, targets, params)
+    fan = np.vstack([nominal, _targets(params)])
+    headings, speeds = _pivots(pose[2], params)
+    targets = np.vstack([fan, pivot_command(pose[2], headings, speeds, params)])
+    paths = np.concatenate([rollout(pose, velocity, fan, params),
+                            pivot_rollout(pose, velocity, headings, speeds, params)])
     now, along = static_clearance(q, paths, points, tracked, radius)
     blocked = _first(along < min(STATIC_MARGIN, now) - CLEARANCE_EPS)          # (C,)
     allowed = blocked >= int(round(STATIC_HORIZON / ROLLOUT_STEP))
