@@ -362,7 +362,8 @@ def test_a_person_walking_at_the_robot_is_avoided():
 @pytest.fixture
 def no_evasion(monkeypatch):
     """The field controllers without the evasion layer (the field's command always kept)."""
-    monkeypatch.setattr(evasion, 'evade', lambda pose, velocity, command, *rest: (*command, False))
+    monkeypatch.setattr(evasion.Evader, 'evade',
+                        lambda self, pose, velocity, command, *rest: (*command, False))
 
 
 @pytest.mark.parametrize('lateral', [0.0, 0.4])
