@@ -686,3 +686,22 @@ def test_evasion_side_steps_a_person_from_beside_a_wall_it_faces(dead_end_y, yaw
         world.step(v, omega, 0.1)
     assert world.contact_events == 0
     assert world.pose[0] < 1.1 - 0.29 - 0.2          # it went round to the person's left
+
+
+def test_the_evader_keeps_a_forward_choice_that_is_still_as_good_as_the_best():
+    """Choosing afresh every period, a pivot one step and an arc the next, goes nowhere."""
+    p = params()
+    walker = np.array([[1.2, 0.0, -0.35, 0.0, 0.3]])
+    pose, still = np.zeros(3), np.zeros(2)
+    fresh = evasion.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
+                          np.zeros((0, 2)), p)
+    evader = evasion.Evader()
+    evader.kept = ('pivot', -math.pi / 2, p.max_speed)            # step aside to the right
+    v, omega, evading = evader.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
+                                     np.zeros((0, 2)), p)
+    assert evading and (v, omega) != fresh[:2]
+    assert (v, omega) == (0.0, -p.max_omega)                       # turning right to it
+    assert evader.kept == ('pivot', -math.pi / 2, p.max_speed)
+    evader.forget()
+    assert evader.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
+                        np.zeros((0, 2)), p) == fresh

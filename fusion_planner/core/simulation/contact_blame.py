@@ -112,7 +112,7 @@ def _first_sighting(static, history, touched):
 
 
 def _any_escape_clear(static, robot, radii, start, people, dt):
-    """Simulate every escape from ``start`` against ``people`` (T, K, 2); True when one stays clear."""
+    """Whether one escape from ``start`` stays clear of ``people`` (T, K, 2) [m] and the walls."""
     headings = start.pose[2] + np.linspace(0.0, 2 * math.pi, ESCAPE_HEADINGS, endpoint=False)
     senses = np.repeat([1.0, -1.0], ESCAPE_HEADINGS)
     yaw_goal = np.tile(headings, 2) + np.where(senses > 0, 0.0, math.pi)

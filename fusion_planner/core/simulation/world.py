@@ -871,7 +871,8 @@ class World:
         closing = float(velocity @ towards) / max(math.hypot(towards[0], towards[1]), 1e-9)
         if speed >= AT_REST_MPS and closing > RETREAT_COSINE * speed:
             return False
-        return not could_escape(self.static, self.robot, self._mover_radii, list(self._history), touched)
+        return not could_escape(self.static, self.robot, self._mover_radii,
+                                list(self._history), touched)
 
     def _remember(self):
         """Record the state after a step; keep what an escape may start from."""
