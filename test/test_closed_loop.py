@@ -142,7 +142,7 @@ class Run:
         cli_args = ['--ros-args', *ros_args] if ros_args else None
         self.monitor = Node('test_monitor', context=context, cli_args=cli_args)
         self.nodes.append(self.monitor)
-        diagnostics_sub = demo.attach_recorder(self.monitor, self.recorder)
+        self.diagnostics_sub = demo.attach_recorder(self.monitor, self.recorder)
         self.executor = SingleThreadedExecutor(context=context)
         self.tick = lambda: None  # in one process the simulator sends the goal
         if in_process:
@@ -151,8 +151,8 @@ class Run:
             # Discovery can outlast a fast run: as the demo does, the monitor
             # sends the goal once it hears every node (the world waits for it).
             self.params['simulator']['publish_goal'] = False
-            self.tick = demo.goal_when_heard(self.monitor, diagnostics_sub, self.recorder,
-                                             self.scenario.goal)
+            self.tick = demo.goal_when_heard(self.monitor, self.diagnostics_sub,
+                                             self.recorder, self.scenario.goal)
             env = dict(os.environ)
             env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(REPO), env.get('PYTHONPATH')]))
             self.procs = start_node_processes(self.params, ros_args, log_dir, env)
@@ -171,7 +171,18 @@ class Run:
         failure = demo.watch(self.recorder, time_limit_s, wall_limit_s, self.alive,
                              tick=self.tick)
         self.wall_time = time.monotonic() - self.wall_start
+        if failure is not None and self.procs and self.recorder.plan is None:
+            failure += f' (no plan; {self.discovery()})'
         return failure
+
+    def discovery(self):
+        """What the monitor has discovered: the goal waits for all of it (one line)."""
+        monitor = self.monitor
+        publishers = [f'{i.node_namespace.rstrip("/")}/{i.node_name}'
+                      for i in monitor.get_publishers_info_by_topic('/diagnostics')]
+        return (f'ground truth poses heard: {len(self.recorder.pose_times)}; nodes: '
+                f'{sorted(monitor.get_node_names_and_namespaces())}; /diagnostics publishers: '
+                f'{publishers}, matched: {self.diagnostics_sub.get_publisher_count()}')
 
     def wait_for(self, condition, wall_limit_s, period_s=0.05):
         """Poll ``condition()`` until true or the wall limit; returns its last value."""

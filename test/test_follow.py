@@ -21,6 +21,7 @@ from fusion_planner.core.local_planning.follow import (
     CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
     Observation, make_controller, thin_points)
 from fusion_planner.core.grid import GridMap
+from fusion_planner.core.simulation.world import BounceMotion, MovingObstacle, RobotSpec, World
 
 DT = 0.05            # control period and integration step [s]
 RADIUS = 0.2         # robot radius [m]
@@ -361,7 +362,8 @@ def test_a_person_walking_at_the_robot_is_avoided():
 @pytest.fixture
 def no_evasion(monkeypatch):
     """The field controllers without the evasion layer (the field's command always kept)."""
-    monkeypatch.setattr(evasion, 'evade', lambda pose, velocity, command, *rest: (*command, False))
+    monkeypatch.setattr(evasion.Evader, 'evade',
+                        lambda self, pose, velocity, command, *rest: (*command, False))
 
 
 @pytest.mark.parametrize('lateral', [0.0, 0.4])
@@ -416,10 +418,12 @@ SLIT = np.vstack([wall((-2.0, -0.45), (3.0, -0.45), spacing=0.05),
                   wall((-2.0, 0.45), (3.0, 0.45), spacing=0.05)])
 
 
-def test_evasion_backs_away_from_a_person_walking_at_the_robot_in_a_slit():
+def test_evasion_leaves_a_slit_before_a_person_walking_at_the_robot():
+    """No room beside the person: it backs away or turns round to drive away, never on."""
     v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]], SLIT)
     assert evading
-    assert -evasion.REVERSE_FRACTION * params().max_speed - EPS <= v < 0.0
+    assert -evasion.REVERSE_FRACTION * params().max_speed - EPS <= v <= 0.0
+    assert v < 0.0 or abs(omega) > 0.0
     assert abs(omega) <= params().max_omega + EPS
 
 
@@ -444,8 +448,8 @@ def test_evasion_that_waits_beside_a_passing_person_keeps_its_heading():
 
 def test_evasion_ignores_scan_points_on_the_tracked_person():
     person = [[1.2, 0.0, -0.35, 0.0, 0.3]]
-    v, _, _ = evade_now((0.0, 0.0), person, np.vstack([SLIT, circle((1.2, 0.0), 0.3)]))
-    assert v < 0.0                                              # the person is not a wall
+    points = np.vstack([SLIT, circle((1.2, 0.0), 0.3)])
+    assert evade_now((0.0, 0.0), person, points) == evade_now((0.0, 0.0), person, SLIT)
 
 
 # -- replanning ------------------------------------------------------------
@@ -660,3 +664,44 @@ def test_an_absurd_measured_reverse_speed_never_gives_a_faster_command():
                       obstacle_points=np.zeros((0, 2)), tracked=(), time=0.0)
     command = controller.compute(obs)
     assert -params.max_speed <= command.v <= params.max_speed
+
+
+@pytest.mark.parametrize('dead_end_y, yaw', [(3.1, 0.0), (3.1, 0.5), (3.2, 1.0)])
+def test_evasion_side_steps_a_person_from_beside_a_wall_it_faces(dead_end_y, yaw):
+    """A robot waiting at the closed end of a 1.45 m corridor, close to its right wall and facing
+    it, a person walking up the corridor at it: every constant arc runs into a wall or towards
+    the person, so the evasion turns on the spot and drives into the room on the person's left."""
+    occupied = np.ones((80, 40), bool)                       # 2 m x 4 m, 0.05 m cells
+    occupied[:, 4:33] = False                                # the corridor: x in [0.2, 1.65]
+    occupied[int(round(dead_end_y / 0.05)):, :] = True       # closed above dead_end_y
+    grid = GridMap(occupied, resolution=0.05)
+    person = MovingObstacle(0.29, BounceMotion((1.1, 0.6), (0.0, 0.25)))
+    world = World(grid, RobotSpec(radius=0.2, max_speed=0.8, max_accel=1.0, max_omega=2.0),
+                  np.array([1.42, 2.6, yaw]), moving_obstacles=[person])
+    p = FollowerParams(max_speed=0.8, max_accel=1.0, max_omega=2.0, max_alpha=5.0,
+                       control_period=0.1)
+    for _ in range(100):
+        v, omega, _ = evasion.evade(world.pose, world.velocity, (0.0, 0.0), np.array([0.0, 1.0]),
+                                    world.tracked_obstacles(), world.scan().points, p)
+        world.step(v, omega, 0.1)
+    assert world.contact_events == 0
+    assert world.pose[0] < 1.1 - 0.29 - 0.2          # it went round to the person's left
+
+
+def test_the_evader_keeps_a_forward_choice_that_is_still_as_good_as_the_best():
+    """Choosing afresh every period, a pivot one step and an arc the next, goes nowhere."""
+    p = params()
+    walker = np.array([[1.2, 0.0, -0.35, 0.0, 0.3]])
+    pose, still = np.zeros(3), np.zeros(2)
+    fresh = evasion.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
+                          np.zeros((0, 2)), p)
+    evader = evasion.Evader()
+    evader.kept = ('pivot', -math.pi / 2, p.max_speed)            # step aside to the right
+    v, omega, evading = evader.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
+                                     np.zeros((0, 2)), p)
+    assert evading and (v, omega) != fresh[:2]
+    assert (v, omega) == (0.0, -p.max_omega)                       # turning right to it
+    assert evader.kept == ('pivot', -math.pi / 2, p.max_speed)
+    evader.forget()
+    assert evader.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
+                        np.zeros((0, 2)), p) == fresh

@@ -81,19 +81,34 @@ def test_hit_ages_grow_on_a_wall_and_stay_young_on_a_walker():
     assert walker_age[0] < 0.3
 
 
-@pytest.mark.parametrize('robot_v, person_vx, passive', [
-    (0.0, -0.6, True),      # standing: the person walks into it
-    (-0.3, -0.6, True),     # backing away from a faster person
-    (0.5, 0.0, False),      # driving into a person standing in the way
-    (0.3, -0.6, False),     # driving on at a person walking at it
+def _corridor(width_m, closed_behind):
+    """A 8 x 4 m map (0.1 m cells) walled off except a corridor along y = 2 m."""
+    occupied = np.ones((40, 80), bool)
+    half = int(round(width_m / 0.2))
+    occupied[20 - half:20 + half, (15 if closed_behind else 0):] = False
+    return GridMap(occupied, resolution=0.1)
+
+
+@pytest.mark.parametrize('grid, robot_v, person, passive', [
+    # standing at the end of a dead-end corridor too narrow to pass: nowhere to go
+    (_corridor(0.6, True), 0.0, ((4.0, 2.0), (-0.6, 0.0)), True),
+    # backing away down a corridor from a person faster than the robot can drive
+    (_corridor(0.6, False), -0.3, ((3.0, 2.0), (-1.5, 0.0)), True),
+    # standing in the open while a person walks at it from 2.5 m: it could step aside
+    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.0, ((5.0, 2.0), (-0.6, 0.0)), False),
+    # creeping on ahead of a slow person overtaking from behind, room to either side
+    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.1, ((0.6, 2.0), (0.5, 0.0)), False),
+    # driving into a person standing in the way
+    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.5, ((3.0, 2.0), (0.0, 0.0)), False),
+    # driving on at a person walking at it
+    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.3, ((3.0, 2.0), (-0.6, 0.0)), False),
 ])
-def test_contacts_with_people_are_passive_only_when_the_robot_stood_or_retreated(
-        robot_v, person_vx, passive):
-    grid = GridMap(np.zeros((40, 80), bool), resolution=0.1)
-    person = MovingObstacle(0.3, BounceMotion((3.0, 2.0), (person_vx, 0.0)))
+def test_contacts_with_people_are_passive_only_when_the_robot_could_not_get_away(
+        grid, robot_v, person, passive):
+    walker = MovingObstacle(0.25, BounceMotion(*person))
     world = World(grid, RobotSpec(radius=0.2, max_accel=10.0), np.array([2.0, 2.0, 0.0]),
-                  moving_obstacles=[person])
-    while world.contact_events == 0 and world.time < 5.0:
+                  moving_obstacles=[walker])
+    while world.contact_events == 0 and world.time < 6.0:
         world.step(robot_v, 0.0, 0.05)
     assert world.contact_events == world.moving_contact_events == 1
     assert world.passive_contact_events == int(passive)

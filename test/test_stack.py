@@ -92,7 +92,8 @@ def test_cancel_stops_the_robot_and_nothing_resumes(context, scenario, tmp_path)
     cancel = run.monitor.create_client(Trigger, 'cancel_goal')
     try:
         assert run.wait_for(lambda: run.recorder.poses and math.hypot(
-            run.recorder.poses[-1][0] - 1.05, run.recorder.poses[-1][1] - 1.05) > 1.0, 40.0)
+            run.recorder.poses[-1][0] - 1.05, run.recorder.poses[-1][1] - 1.05) > 1.0, 40.0), \
+            f'the robot did not leave the start: {run.discovery()}'
         assert cancel.wait_for_service(timeout_sec=WAIT_S)
         future = cancel.call_async(Trigger.Request())
         assert run.wait_for(future.done, WAIT_S) and future.result().success

@@ -13,12 +13,13 @@ Notes
   ``--seed`` gives scenarios the controller was never tuned on.
 - **Avoidable contacts**: every contact event that is not *passive* (a
   moving obstacle walking into a robot that stood still or retreated from
-  it; :class:`~fusion_planner.core.simulation.world.World` tells them apart
-  as each contact begins, see its module notes): then the person walked
-  into the robot (people here ignore it), which the robot could not
-  prevent by its own motion (passive safety: a robot in motion is
-  responsible for its contacts, one at rest or retreating is not). A robot
-  driving across a person's way is in motion, not retreating.
+  it, when no simple escape begun up to 2 s earlier with the person in
+  sight would have kept the robot clear;
+  :class:`~fusion_planner.core.simulation.world.World` tells them apart as
+  each contact begins, see its module notes): then the person walked into
+  a robot that could not get away (people here ignore it). A robot driving
+  across a person's way is in motion, not retreating, and one that stood
+  where it could have stepped aside answers for the contact too.
 """
 
 import concurrent.futures

@@ -655,9 +655,8 @@ def goal_when_heard(node, diagnostics_sub, recorder, goal):
     With the nodes in other processes, DDS discovery can take longer than a
     fast run: the monitor sends the goal itself (the simulator's
     ``publish_goal`` off) once it has heard the simulator's ground truth
-    and its ``/diagnostics`` subscription ``diagnostics_sub`` is matched to
-    every diagnostics publisher in the graph, the three nodes under its
-    namespace among them. The world is held until the first plan, so
+    and its ``/diagnostics`` subscription ``diagnostics_sub`` hears the
+    three nodes (:func:`nodes_heard`). The world is held until the first plan, so
     nothing of the run is missed: neither the first poses nor a status.
     """
     from geometry_msgs.msg import PoseStamped
@@ -678,24 +677,22 @@ def goal_when_heard(node, diagnostics_sub, recorder, goal):
 
 
 def nodes_heard(node, diagnostics_sub):
-    """Whether ``diagnostics_sub`` of ``node`` is matched to the three nodes in its namespace.
+    """Whether ``diagnostics_sub`` of ``node`` hears the three nodes in its namespace.
 
-    The graph must know each of :data:`NODES` under ``node``'s namespace
-    with a ``/diagnostics`` publisher, and the subscription must be matched
-    to as many publishers as the graph has (a graph entry comes before its
-    match).
+    The graph must know a ``/diagnostics`` publisher of each of
+    :data:`NODES` under ``node``'s namespace (a graph entry comes before
+    its match), and the subscription must be matched to at least as many
+    publishers. Publishers are looked up by topic, not by node name: a node
+    of a process that has just ended can stay in the graph under the same
+    name, unmatched, for a while.
     """
     from fusion_planner.ros.diagnostics import DIAGNOSTICS_TOPIC
 
     namespace = node.get_namespace()
-    known = set(node.get_node_names_and_namespaces())
-    for name in NODES:
-        if (name, namespace) not in known:
-            return False
-        topics = node.get_publisher_names_and_types_by_node(name, namespace)
-        if DIAGNOSTICS_TOPIC not in (topic for topic, _ in topics):
-            return False
-    return diagnostics_sub.get_publisher_count() >= node.count_publishers(DIAGNOSTICS_TOPIC)
+    publishers = {(info.node_name, info.node_namespace)
+                  for info in node.get_publishers_info_by_topic(DIAGNOSTICS_TOPIC)}
+    return (all((name, namespace) in publishers for name in NODES)
+            and diagnostics_sub.get_publisher_count() >= len(NODES))
 
 
 class Spinner:

@@ -32,7 +32,7 @@ Contract:
   ``solvable``, ``controller``, ``perception``, ``seed``, ``plan_length_m``,
   ``moving_collisions`` (the contacts a moving obstacle began),
   ``passive_collisions`` (those of them begun while the robot stood or
-  retreated),
+  retreated and could not have got out of the way),
   ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s`` and
   ``time_ratio``. A batch: ``scenarios``, ``family``, ``seed``,
   ``wall_time_s``, ``controllers`` (per controller the fields of

@@ -26,7 +26,11 @@ Check
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
-    turn rates across ``+-max_omega``) is rolled out the same way and against
+    turn rates across ``+-max_omega``) and of *pivots* (turn on the spot to
+    one of :data:`PIVOT_HEADINGS` headings, then drive straight along it at
+    one of :data:`PIVOT_SPEED_FRACTIONS` of ``max_speed``: the side-step
+    of a robot standing beside a wall, whose every constant arc runs into
+    the wall or towards the person) is rolled out the same way and against
     the static points (scan points not on a tracked obstacle): a rollout that
     would come within :data:`STATIC_MARGIN` of them (or closer than now)
     stops there, pinned, and one that would do so within
@@ -35,7 +39,12 @@ Evasion
     motion are preferred when there are any; then the latest predicted
     contact wins, then the least intrusion into the margin (its time
     integral [m s]), then the most progress along the desired direction,
-    then the turn rate nearest the controller's. It
+    then the turn rate nearest the controller's. An :class:`Evader` (the
+    controllers' evasion) keeps a forward target or pivot it chose while
+    that is still allowed, as late in contact as the best and within
+    :data:`KEEP_INTRUSION` of its intrusion: the rollouts assume the
+    choice held, and a robot that switches every period between pivots
+    and arcs, or between backing away and driving on, goes nowhere. It
     is the only place a controller reverses: backing away is sometimes the
     only way out of a person's path, but not into a corner, and not when
     waiting beside them will do.
@@ -56,8 +65,8 @@ Examples
 >>> walls = np.array([[x, y] for x in np.linspace(-2.0, 3.0, 60) for y in (-0.45, 0.45)])
 >>> v, omega, evading = evade(pose, velocity, (0.0, 0.0), np.array([1.0, 0.0]),
 ...                           walker, walls, p)
->>> evading, v < 0.0                                       # in a slit, it backs away
-(True, True)
+>>> evading, v <= 0.0, omega != 0.0                        # in a slit, it turns round to leave
+(True, True, True)
 """
 
 import math
@@ -119,6 +128,15 @@ SPEED_FRACTIONS = (-1.0, -0.5, 0.0, 0.25, 0.5, 0.75, 1.0)
 #: Target turn rates of the evasive fan, as fractions of ``max_omega``.
 TURN_FRACTIONS = (-1.0, -0.4, 0.0, 0.4, 1.0)
 
+#: Headings of the pivot candidates, evenly spaced round the robot.
+PIVOT_HEADINGS = 8
+
+#: Straight speeds of the pivot candidates, as fractions of ``max_speed``.
+PIVOT_SPEED_FRACTIONS = (0.5, 1.0)
+
+#: A pivot drives on once its heading is off by less than this [rad].
+PIVOT_ALIGNED_RAD = 0.3
+
 #: Intrusions closer than this [m s] count as equal (ties go to progress).
 INTRUSION_TOLERANCE = 1e-6
 
@@ -130,6 +148,11 @@ PROGRESS_TOLERANCE = 1e-6
 
 #: Slack [m] of the clearance comparisons (floating point only).
 CLEARANCE_EPS = 1e-9
+
+#: A kept evasive choice stays while its intrusion into :data:`MOVING_MARGIN`
+#: exceeds the best one's by at most this [m s] (and it is otherwise as
+#: good): a commitment, not a new choice every period.
+KEEP_INTRUSION = 0.02
 
 
 def _times():
@@ -173,6 +196,46 @@ def rollout(pose, velocity, targets, params):
     x = pose[0] + np.cumsum(v * np.cos(yaw), axis=1) * ROLLOUT_STEP
     y = pose[1] + np.cumsum(v * np.sin(yaw), axis=1) * ROLLOUT_STEP
     return np.stack([x, y], axis=-1)
+
+
+def pivot_command(yaw, headings, speeds, params):
+    """Target ``(P, 2)`` ``v, omega`` of pivots: turn towards ``headings`` [rad], then drive.
+
+    The turn rate closes the heading error within one
+    :data:`ROLLOUT_STEP` (at most ``max_omega``); the speed is ``speeds``
+    [m/s] once the error is below :data:`PIVOT_ALIGNED_RAD`, 0 before.
+    """
+    error = np.angle(np.exp(1j * (headings - yaw)))
+    omega = np.clip(error / ROLLOUT_STEP, -params.max_omega, params.max_omega)
+    return np.column_stack([np.where(np.abs(error) < PIVOT_ALIGNED_RAD, speeds, 0.0), omega])
+
+
+def _pivots(yaw, params):
+    """Headings [rad] and straight speeds [m/s] ``(P,)`` of the pivot candidates."""
+    headings = yaw + np.linspace(0.0, 2.0 * math.pi, PIVOT_HEADINGS, endpoint=False)
+    speeds = np.array(PIVOT_SPEED_FRACTIONS) * params.max_speed
+    h, v = np.meshgrid(headings, speeds, indexing='ij')
+    return h.ravel(), v.ravel()
+
+
+def pivot_rollout(pose, velocity, headings, speeds, params):
+    """Robot positions ``(P, T, 2)`` [m] following each pivot, within the acceleration limits."""
+    x = np.full(len(headings), pose[0])
+    y = np.full(len(headings), pose[1])
+    yaw = np.full(len(headings), pose[2])
+    v = np.full(len(headings), velocity[0])
+    w = np.full(len(headings), velocity[1])
+    dv, dw = params.max_accel * ROLLOUT_STEP, params.max_alpha * ROLLOUT_STEP
+    out = []
+    for _ in _times():
+        target = pivot_command(yaw, headings, speeds, params)
+        v = v + np.clip(target[:, 0] - v, -dv, dv)
+        w = w + np.clip(target[:, 1] - w, -dw, dw)
+        yaw = yaw + w * ROLLOUT_STEP
+        x = x + v * np.cos(yaw) * ROLLOUT_STEP
+        y = y + v * np.sin(yaw) * ROLLOUT_STEP
+        out.append(np.column_stack([x, y]))
+    return np.stack(out, axis=1)
 
 
 def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, until=None):
@@ -294,6 +357,33 @@ def _relevant(q, tracked, params):
     return tracked[gap - MOVING_MARGIN < closing * HORIZON]
 
 
+class Evader:
+    """The evasion of one controller: :func:`evade` that keeps its forward choices.
+
+    Attributes
+    ----------
+    kept : tuple or None
+        The forward evasive choice of the last call, ``('arc', v, omega)``
+        or ``('pivot', heading, speed)`` [m/s, rad/s, rad]; None when the
+        last call did not evade, backed away, or there was none.
+    """
+
+    def __init__(self):
+        self.kept = None
+
+    def forget(self):
+        """Drop the kept choice (the evasion did not run this period)."""
+        self.kept = None
+
+    def evade(self, pose, velocity, command, desired, tracked, points, params):
+        """:func:`evade`, keeping the last forward choice while it is as good as the best."""
+        v, omega, evading, chosen = _evade(pose, velocity, command, desired, tracked, points,
+                                           params, self.kept)
+        forward = chosen is not None and (chosen[0] == 'pivot' or chosen[1] >= 0.0)
+        self.kept = chosen if evading and forward else None
+        return v, omega, evading
+
+
 def evade(pose, velocity, command, desired, tracked, points, params):
     """Keep a command when it is safe; otherwise the best evasive one.
 
@@ -339,18 +429,31 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     most progress along ``desired``, then the turn rate nearest
     ``command``'s (a robot that waits keeps its heading rather than spin).
     """
+    return _evade(pose, velocity, command, desired, tracked, points, params, None)[:3]
+
+
+def _evade(pose, velocity, command, desired, tracked, points, params, kept):
+    """:func:`evade` with a kept choice (see :class:`Evader`); also returns the choice made."""
     q = pose[:2]
     tracked = _relevant(q, tracked, params)
     if len(tracked) == 0:
-        return command[0], command[1], False
+        return command[0], command[1], False, None
     movers, until = turning_round(tracked)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
     if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), movers, radius,
                             until=until)) >= MOVING_MARGIN:
-        return command[0], command[1], False
-    targets = np.vstack([nominal, _targets(params)])
-    paths = rollout(pose, velocity, targets, params)
+        return command[0], command[1], False, None
+    fan = np.vstack([nominal, _targets(params)])
+    headings, speeds = _pivots(pose[2], params)
+    if kept is not None and kept[0] == 'arc':
+        fan = np.vstack([fan, kept[1:]])
+    elif kept is not None:
+        headings, speeds = np.append(headings, kept[1]), np.append(speeds, kept[2])
+    targets = np.vstack([fan, pivot_command(pose[2], headings, speeds, params)])
+    paths = np.concatenate([rollout(pose, velocity, fan, params),
+                            pivot_rollout(pose, velocity, headings, speeds, params)])
+    kept_index = None if kept is None else (len(fan) - 1 if kept[0] == 'arc' else len(targets) - 1)
     now, along = static_clearance(q, paths, points, tracked, radius)
     blocked = _first(along < min(STATIC_MARGIN, now) - CLEARANCE_EPS)          # (C,)
     allowed = blocked >= int(round(STATIC_HORIZON / ROLLOUT_STEP))
@@ -370,7 +473,16 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     contact = _first(gaps < 0.0)
     intrusion = np.maximum(MOVING_MARGIN - gaps, 0.0).sum(axis=1) * ROLLOUT_STEP
     best = allowed & (contact == np.max(contact[allowed]))
-    best &= intrusion <= np.min(intrusion[best]) + INTRUSION_TOLERANCE
-    best &= progress >= np.max(progress[best]) - PROGRESS_TOLERANCE
-    choice = int(np.argmin(np.where(best, np.abs(targets[:, 1] - command[1]), np.inf)))
-    return float(targets[choice, 0]), float(targets[choice, 1]), True
+    if kept_index is not None and best[kept_index] \
+            and intrusion[kept_index] <= np.min(intrusion[best]) + KEEP_INTRUSION:
+        choice = kept_index
+    else:
+        best &= intrusion <= np.min(intrusion[best]) + INTRUSION_TOLERANCE
+        best &= progress >= np.max(progress[best]) - PROGRESS_TOLERANCE
+        choice = int(np.argmin(np.where(best, np.abs(targets[:, 1] - command[1]), np.inf)))
+    if choice < len(fan):
+        chosen = ('arc', float(targets[choice, 0]), float(targets[choice, 1]))
+    else:
+        pivot = choice - len(fan)
+        chosen = ('pivot', float(headings[pivot]), float(speeds[pivot]))
+    return float(targets[choice, 0]), float(targets[choice, 1]), True, chosen

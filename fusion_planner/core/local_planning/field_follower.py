@@ -241,6 +241,7 @@ class FieldFollower(ControllerBase):
         self._monitor = ProgressMonitor(p.stuck_progress)
         self._unreachable = None  # why the goal cannot be reached, once a replan proved it
         self._passing_side = 0    # side kept for the people on the route (see yielding)
+        self._evader = evasion.Evader()  # keeps its evasive choice while it stays good
         self._last_replan = -math.inf  # when a new plan was last asked for [s]
         self._plan_route = self._route = None
         if self.use_key_nodes and self._path is not None:
@@ -904,9 +905,11 @@ class FieldFollower(ControllerBase):
         if self.predict and len(movers):
             norm = math.hypot(desired[0], desired[1])
             desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
-            command = evasion.evade(obs.pose, obs.velocity, command, desired, movers,
-                                    scene.all_points, self.params)[:2]
+            command = self._evader.evade(obs.pose, obs.velocity, command, desired, movers,
+                                         scene.all_points, self.params)[:2]
             v_min = -evasion.REVERSE_FRACTION * self.params.max_speed
+        else:
+            self._evader.forget()
         v, omega = self._limit(command[0], command[1], obs, v_min=v_min)
         return self._on_free_arc(obs, scene, v, omega, v_min)
 

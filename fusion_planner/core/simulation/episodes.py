@@ -84,8 +84,9 @@ class EpisodeResult:
         (rather than the robot driving into a static obstacle).
     passive_collisions : int
         Those of them that a moving obstacle began while the robot stood or
-        retreated from it (:attr:`World.passive_contact_events`); the others
-        the robot could have avoided.
+        retreated from it and could not have got out of its way
+        (:attr:`World.passive_contact_events`); the others the robot could
+        have avoided.
     time_s : float
         Simulated time at the end [s].
     path_length_m : float
@@ -445,7 +446,8 @@ class ControllerSummary:
         Those that began with a moving obstacle overlapping the robot.
     avoidable_collisions : int
         Those that were not passive (a moving obstacle walking into a robot
-        that stood or retreated; :attr:`EpisodeResult.passive_collisions`).
+        that stood or retreated and could not get away;
+        :attr:`EpisodeResult.passive_collisions`).
     episodes_with_collisions : int
     mean_time_s : float or None
         Mean simulated time of the successful episodes [s].

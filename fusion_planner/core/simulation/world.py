@@ -28,11 +28,14 @@ Conventions
   event with a moving obstacle is *passive* when it begins while the robot
   stands (moved slower than :data:`AT_REST_MPS` in that step) or retreats
   from the obstacle it touches (moved within 60 degrees of straight away
-  from it, :data:`RETREAT_COSINE`): the people here ignore the robot, and
-  no motion of a robot at rest or in retreat prevents one from walking into
-  it (passive safety: a robot in motion answers for its contacts). Every
-  other contact event is *avoidable*: a robot driving across a person's way
-  is in motion, not retreating.
+  from it, :data:`RETREAT_COSINE`), and no simple escape begun up to 2 s
+  earlier, with the person in sight, would have kept the robot clear of
+  everything (:func:`~fusion_planner.core.simulation.contact_blame.could_escape`):
+  the people here ignore the robot, and a robot that stands or backs away
+  when it could have stepped aside answers for the contact as much as one
+  in motion (passive safety: a robot in motion answers for its contacts).
+  Every other contact event is *avoidable*: a robot driving across a
+  person's way is in motion, not retreating.
 - Moving obstacles bounce off the static world (axis-separated reflection of
   their velocity) and pass through one another.
 - Determinism: all randomness (random walks, scan noise) comes from
@@ -61,6 +64,7 @@ False
 
 import logging
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,6 +72,7 @@ import numpy as np
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation import ray_kernel
+from fusion_planner.core.simulation.contact_blame import ESCAPE_HORIZON_S, Snapshot, could_escape
 
 LOGGER = logging.getLogger(__name__)
 
@@ -798,6 +803,9 @@ class World:
         self.passive_contact_events = 0
         self.in_contact = False
         self._movers = [self._make_mover(spec) for spec in moving_obstacles]
+        self._mover_radii = np.array([m.spec.radius for m in self._movers], float)
+        self._history = deque()
+        self._remember()
 
     # -- state queries ------------------------------------------------------
 
@@ -850,18 +858,30 @@ class World:
         return any(np.hypot(*(m.position - p)) < m.spec.radius + r for m in self._movers)
 
     def _passive(self, before, dt):
-        """Whether the robot, at ``before`` (2,) [m] a step ``dt`` [s] ago, stood or retreated.
+        """Whether a contact that began in the last step was passive (see the module notes).
 
-        Retreating is from the moving obstacle nearest to overlapping it now.
+        ``before`` (2,) [m] is where the robot was a step ``dt`` [s] ago; the
+        contact is with the moving obstacle nearest to overlapping it now.
         """
+        gaps = [math.hypot(*(m.position - self.pose[:2])) - m.spec.radius for m in self._movers]
+        touched = int(np.argmin(gaps))
         velocity = (self.pose[:2] - before) / dt
         speed = math.hypot(velocity[0], velocity[1])
-        if speed < AT_REST_MPS:
-            return True
-        gaps = [math.hypot(*(m.position - self.pose[:2])) - m.spec.radius for m in self._movers]
-        towards = self._movers[int(np.argmin(gaps))].position - self.pose[:2]
+        towards = self._movers[touched].position - self.pose[:2]
         closing = float(velocity @ towards) / max(math.hypot(towards[0], towards[1]), 1e-9)
-        return closing <= RETREAT_COSINE * speed
+        if speed >= AT_REST_MPS and closing > RETREAT_COSINE * speed:
+            return False
+        return not could_escape(self.static, self.robot, self._mover_radii,
+                                list(self._history), touched)
+
+    def _remember(self):
+        """Record the state after a step; keep what an escape may start from."""
+        self._history.append(Snapshot(
+            time=self.time, pose=self.pose.copy(), speed=float(self.velocity[0]),
+            people=self.obstacle_positions(),
+            people_velocity=np.array([m.velocity for m in self._movers], float).reshape(-1, 2)))
+        while self._history[0].time < self.time - ESCAPE_HORIZON_S - 1e-9:
+            self._history.popleft()
 
     # -- sensing ----------------------------------------------------------------
 
@@ -947,6 +967,7 @@ class World:
             self.pose = new_pose
             self.velocity = np.array([v, omega])
         self.time += dt
+        self._remember()
         contact = blocked or self._overlaps_mover(self.pose[:2], spec.radius)
         started = contact and not self.in_contact
         if started:
