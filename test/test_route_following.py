@@ -90,6 +90,19 @@ def test_driving_on_past_a_post_at_the_present_clearance_is_allowed_closing_in_i
     assert toward < 0.5
 
 
+def test_a_person_on_the_route_brakes_a_robot_far_off_it_no_sooner_than_it_can_get_there():
+    # a robot 3 m down a side corridor, driving back up it toward its route, while a person
+    # crosses the route at the robot's station: it can drive 3 m before it reaches them
+    route = Route(np.array([[0.0, 4.0], [10.0, 4.0]]))
+    person = np.array([[5.0, 4.0, 0.25]])
+    pose = np.array([5.0, 1.0, math.pi / 2])
+    gap = braking_path_gap(pose, route, 5.0, np.zeros((0, 2)), np.zeros((0, 2)), person, PARAMS)
+    assert gap > 2.0
+    on_route = braking_path_gap(np.array([4.0, 4.0, 0.0]), route, 4.0, np.zeros((0, 2)),
+                                np.zeros((0, 2)), person, PARAMS)
+    assert on_route < 0.8
+
+
 def test_a_robot_far_off_its_direction_turns_on_the_spot_first_and_drives_when_closer():
     ctrl = FieldFollower(PARAMS)
     ctrl.set_path(np.array([[0.0, 0.0], [5.0, 0.0]]), np.array([[5.0, 0.0]]))

@@ -136,7 +136,9 @@ def braking_path_gap(pose, route, station, points, blocking, circles, params):
     float
         The smaller of the arc length to the first route point whose disc of
         ``robot_radius + safety_distance`` reaches a blocking point or a
-        circle, and the free straight travel (:func:`front_gap`) of that
+        circle (at least the straight distance to that point: a robot off
+        its route, down a side corridor, gets there no sooner), and the
+        free straight travel (:func:`front_gap`) of that
         disc among the tracked circles and of a disc no wider than the
         robot's present clearance among all points; ``inf`` when nothing is
         in the way.
@@ -146,6 +148,8 @@ def braking_path_gap(pose, route, station, points, blocking, circles, params):
     end = station + braking_distance(p)
     along = min(route.along_to_first(blocking, station, end, clearance),
                 route.along_to_first(circles[:, 0:2], station, end, clearance + circles[:, 2]))
+    if math.isfinite(along):
+        along = max(along, math.hypot(*(route.point_at(station + along) - pose[:2])))
     passing = clearance
     if len(points):
         # driving on past a point at the clearance the robot already has is no contact
