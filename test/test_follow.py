@@ -542,7 +542,7 @@ def test_make_controller_names_and_refusals():
 @pytest.mark.parametrize('changes', [
     {'max_speed': 0.0}, {'max_accel': -1.0}, {'max_omega': float('nan')}, {'goal_tolerance': 0},
     {'control_period': 0.0}, {'robot_radius': -0.1}, {'prediction_horizon': -1.0},
-    {'stuck_window': float('inf')}, {'apf': 'default'},
+    {'stuck_window': float('inf')}, {'apf': 'default'}, {'route_heading_gain': 0.0},
 ])
 def test_bad_follower_params_are_refused(changes):
     with pytest.raises(InvalidInput):

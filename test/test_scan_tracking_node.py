@@ -151,7 +151,7 @@ def test_bad_scans_at_the_node_are_refused_or_not_tracked_with_a_reason(context)
             t = 10.0 + 0.1 * k
             target.deliver('odom', _odometry_msg(t))
             target.deliver('scan', _scan_msg(t, _walker_ranges((5.0, 1.5 + 0.06 * k))))
-        tracked = node._scan_tracks.tracked(11.9)
+        tracked = node._scan_tracks.movers(11.9)[0]
         assert tracked.shape == (1, 5) and tracked[0, 3] == pytest.approx(0.6, abs=0.15)
         rejected = target.diagnostics()['rejected']
         # another frame: refused (a defective message), the tracks untouched
@@ -172,7 +172,7 @@ def test_bad_scans_at_the_node_are_refused_or_not_tracked_with_a_reason(context)
         target.deliver('odom', _odometry_msg(12.1))
         target.deliver('scan', _scan_msg(12.1, np.full(360, np.inf)))
         assert target.diagnostics()['scan_tracking'] == 'tracking'
-        assert len(node._scan_tracks.tracked(12.1)) == 1
+        assert len(node._scan_tracks.movers(12.1)[0]) == 1
         assert target.diagnostics()['faults'] == 0
     finally:
         node.destroy_node()

@@ -806,11 +806,12 @@ class LocalPlannerNode(ManagedNode):
             scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
             points = np.zeros((0, 2)) if self._scan is None \
                 else frames.transform_points(drift, self._scan[0])
-            tracked = fuse(self._scan_tracks.tracked(now), self._tracker.obstacles(now))
+            scan_tracked, tentative = self._scan_tracks.movers(now)
+            tracked = fuse(scan_tracked, self._tracker.obstacles(now))
             obs = follow.Observation(
                 pose=pose, velocity=velocity, obstacle_points=points,
                 tracked=self._in_plan_frame(tracked), time=now,
-                tentative=self._in_plan_frame(self._scan_tracks.tentative(now)))
+                tentative=self._in_plan_frame(tentative))
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
             # measured velocity, which an odometry glitch can put beyond them.

@@ -68,17 +68,19 @@ class ScanTracks:
             returns = (ranges >= msg.range_min) & (ranges < msg.range_max)
         return self._tracker.update(angles, np.where(returns, ranges, np.nan), robot_pose, stamp_s)
 
-    def tracked(self, now_s):
-        """``(K, 5)`` ``x, y, vx, vy, radius`` of the moving tracks, predicted to ``now_s``."""
-        if self._tracker is None:
-            return np.zeros((0, 5))
-        return self._tracker.report(now_s).tracked
+    def movers(self, now_s):
+        """The moving tracks and the tentative movers, predicted to ``now_s`` [s].
 
-    def tentative(self, now_s):
-        """``(T, 5)`` the same for the tentative movers (seem to move, not confirmed yet)."""
+        Returns
+        -------
+        tracked, tentative : ndarray, shape (K, 5) and (T, 5)
+            ``x, y, vx, vy, radius`` (map frame) of the moving tracks and of
+            the objects that seem to move but are not confirmed yet.
+        """
         if self._tracker is None:
-            return np.zeros((0, 5))
-        return self._tracker.report(now_s).tentative
+            return np.zeros((0, 5)), np.zeros((0, 5))
+        report = self._tracker.report(now_s)
+        return report.tracked, report.tentative
 
     def report(self):
         """The tracker's TrackReport (None without a map)."""
