@@ -103,6 +103,27 @@ def test_a_person_met_head_on_in_a_1_8_m_corridor_is_let_pass_without_a_long_ret
     assert result.time_s < 1.5 * result.optimal_time_s
 
 
+def test_a_person_pacing_the_only_corridor_of_the_plan_is_gone_round_by_another():
+    """Two rooms joined by a short and a long 0.9 m corridor; a person paces the short one.
+
+    The robot cannot pass the person in 0.9 m; waiting for them would take
+    for ever (they walk up and down). After giving way for a while it asks
+    for a plan around them and takes the long corridor.
+    """
+    occupied = np.ones((cells(8.0), cells(12.0)), bool)
+    occupied[cells(0.3):cells(7.7), cells(0.3):cells(2.5)] = False     # left room
+    occupied[cells(0.3):cells(7.7), cells(9.5):cells(11.7)] = False    # right room
+    for y in (4.0, 1.0):                                               # short, long corridor
+        occupied[cells(y - 0.45):cells(y + 0.45), cells(2.5):cells(9.5)] = False
+    person = {'radius': 0.3, 'model': 'waypoints', 'points': [[9.0, 4.0], [3.0, 4.0]],
+              'speed': 0.2}
+    s = scenario(occupied, (1.0, 4.0, 0.0), (11.0, 4.0), moving=[person], time_limit=120.0)
+    result = run_episode(s, 'fusion')
+    assert result.reached and result.collisions == 0, result.failure
+    assert result.stuck_events == 0                                # giving way is no local minimum
+    assert np.min(result.trajectory[:, 1]) < 1.5                   # through the long corridor
+
+
 # -- a bounded, honest end ------------------------------------------------------------------
 
 def test_a_goal_walled_off_by_an_unknown_obstacle_ends_no_path_with_the_robot_still():

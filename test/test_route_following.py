@@ -19,7 +19,7 @@ from fusion_planner.core.local_planning.free_arc import turn_round_error
 from fusion_planner.core.local_planning.follow import make_controller
 from fusion_planner.core.local_planning.speed_policy import (
     ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_speed)
-from fusion_planner.core.local_planning.yielding import passing_bounds
+from fusion_planner.core.local_planning.yielding import passing_bounds, route_closures
 
 PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
 NO_CIRCLES = np.zeros((0, 3))
@@ -180,6 +180,41 @@ def test_no_bounds_for_a_crossing_person_a_person_far_ahead_or_no_room():
     assert passing_bounds(route, crossing, 0.9, 0.9, PARAMS, 0) == (math.inf, math.inf, 0)
     assert passing_bounds(route, far, 0.9, 0.9, PARAMS, 0) == (math.inf, math.inf, 0)
     assert passing_bounds(route, walking, 0.5, 0.5, PARAMS, 0) == (math.inf, math.inf, 0)
+
+
+def test_a_person_on_the_route_ahead_closes_it_from_wall_to_wall_for_a_replan():
+    """A line across a 1 m corridor at the person, stopping short of its walls; not beyond them."""
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    walls = np.vstack([wall((0.0, 0.5), (10.0, 0.5), 0.1), wall((0.0, -0.5), (10.0, -0.5), 0.1)])
+    person = np.array([[1.5, 0.05, -0.3, 0.0, 0.3]])
+    closure = route_closures(route, np.zeros(2), person, walls, PARAMS, 0.05)
+    assert np.allclose(closure[:, 0], 1.5)
+    assert np.min(closure[:, 1]) < -0.3 and np.max(closure[:, 1]) > 0.3     # across the corridor
+    assert np.all(np.abs(closure[:, 1]) < 0.5)                             # not into the walls
+    open_side = route_closures(route, np.zeros(2), person, walls[walls[:, 1] > 0], PARAMS, 0.05)
+    reach = 0.05 + 0.3 + 0.1 + 2 * PARAMS.robot_radius                    # past the person by a robot
+    assert np.min(open_side[:, 1]) == pytest.approx(-reach, abs=0.05)
+
+
+def test_a_robot_pushed_back_behind_its_station_closes_the_route_at_the_person_who_pushed_it():
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    for x in range(6):
+        route.project(np.array([float(x), 0.0]))            # its best point so far: x = 5
+    assert route.station == pytest.approx(5.0)
+    person = np.array([[3.5, 0.0, 0.3, 0.0, 0.3]])          # walked it back to x = 2
+    closure = route_closures(route, np.array([2.0, 0.0]), person, np.zeros((0, 2)), PARAMS, 0.05)
+    assert len(closure) and np.allclose(closure[:, 0], 3.5)
+
+
+def test_no_closure_for_a_crossing_person_one_beside_the_robot_or_one_yet_to_come_near():
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    crossing = np.array([[1.5, 0.0, 0.0, 0.4, 0.3]])
+    beside = np.array([[0.45, 0.0, -0.3, 0.0, 0.3]])      # nearer than the robot, them and a margin
+    far = np.array([[3.0, 0.0, -0.3, 0.0, 0.3]])
+    assert len(route_closures(route, np.zeros(2), far, np.zeros((0, 2)), PARAMS, 0.05)) == 0
+    assert len(route_closures(route, np.zeros(2), crossing, np.zeros((0, 2)), PARAMS, 0.05)) == 0
+    assert len(route_closures(route, np.zeros(2), beside, np.zeros((0, 2)), PARAMS, 0.05)) == 0
+    assert len(route_closures(route, np.zeros(2), np.zeros((0, 5)), np.zeros((0, 2)), PARAMS, 0.05)) == 0
 
 
 # -- centring the plan --------------------------------------------------------------------

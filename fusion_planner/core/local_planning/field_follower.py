@@ -60,7 +60,7 @@ from fusion_planner.core.local_planning.replanning import ObstacleMemory
 from fusion_planner.core.local_planning.route import Route
 from fusion_planner.core.local_planning.speed_policy import (
     ROTATE_FIRST_RAD, braking_path_gap, turn_cap)
-from fusion_planner.core.local_planning.yielding import passing_bounds
+from fusion_planner.core.local_planning.yielding import passing_bounds, route_closures
 
 LOGGER = logging.getLogger(__name__)
 
@@ -98,6 +98,11 @@ GIVING_WAY_GAP = 0.5
 
 #: Shortest time [s] between two replans asked for because the route is blocked.
 BLOCKED_REPLAN_PERIOD = 2.0
+
+#: A route follower held this long [s] without progress toward the goal,
+#: with people on its route just ahead, asks for a plan round them (as a
+#: navigation stack whose costmap marks a person does); at most this often.
+PEOPLE_DETOUR_AFTER = 10.0
 
 #: Replanning outcomes that prove the goal unreachable around what was seen.
 UNREACHABLE = (NoValidPathCouldBeFound, GoalOccupied)
@@ -535,22 +540,59 @@ class FieldFollower(ControllerBase):
                                      p.robot_radius + p.safety_distance)
         return math.isfinite(ahead)
 
-    def _replan_now(self, obs, q, scene):
-        """Ask for a global plan around everything seen so far; True on success."""
+    def _detour_round_people(self, obs, q, scene, stalled):
+        """Plan round the people on the route just ahead after a while without progress; True on a new plan.
+
+        A person walking up and down the corridor the route runs through
+        can hold the robot for as long as they like; after
+        :data:`PEOPLE_DETOUR_AFTER` without progress (``stalled`` [s]),
+        with people on the route ahead, the robot asks for a plan with the
+        route closed at them
+        (:func:`~fusion_planner.core.local_planning.yielding.route_closures`),
+        and takes it if there is one (another corridor) that it drives at
+        ``max_speed`` in no more time than it has already waited beyond the
+        route it has; at most once per that time, and not while escaping.
+        """
+        if (self._replan is None or self._follow is not None or self._episode is not None
+                or stalled < PEOPLE_DETOUR_AFTER
+                or obs.time - self._last_replan < PEOPLE_DETOUR_AFTER):
+            return False
+        walls = points_off_circles(scene.all_points, scene.circle_centres, scene.circle_radii)
+        closures = route_closures(self._route, q, scene.tracked, walls, self.params,
+                                  self.params.point_spacing)
+        longest = self._remaining(q) + self.params.max_speed * stalled
+        return len(closures) > 0 and self._replan_now(obs, q, scene, people=closures,
+                                                      longest=longest)
+
+    def _replan_now(self, obs, q, scene, people=None, longest=math.inf):
+        """Ask for a global plan around everything seen so far; True on success.
+
+        ``people`` (M, 2) [m] are points closing the route at people, for
+        this plan only; people move, so a plan that fails for them proves
+        nothing. A plan longer than ``longest`` [m] is not taken.
+        """
         self._last_replan = obs.time
         self._remember(obs, scene, force=True)
         goal = self._key_nodes[-1].copy()
+        points = self._memory.points.copy()
+        if people is not None:
+            points = np.vstack([points, people])
         try:
-            path, key_nodes = self._replan(q.copy(), goal, self._memory.points.copy())
+            path, key_nodes = self._replan(q.copy(), goal, points)
             path = as_path(path, 'replanned path')
             key_nodes = as_path(key_nodes, 'replanned key_nodes')
         except PlanningError as err:
             LOGGER.info('replanning from (%.2f, %.2f) failed: %s', q[0], q[1], err)
-            if isinstance(err, UNREACHABLE):
+            if isinstance(err, UNREACHABLE) and people is None:
                 self._unreachable = (f'the goal is unreachable around the obstacles seen '
                                      f'(replanned from ({q[0]:.2f}, {q[1]:.2f})): {err}')
                 if self.no_path_proven_at is None:
                     self.no_path_proven_at = obs.time
+            return False
+        length = float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
+        if length > longest:
+            LOGGER.info('a plan of %.1f m round the people is longer than %.1f m; waiting on',
+                        length, longest)
             return False
         # the planner ends at the goal's cell centre; the goal stays the one asked for
         self._path = np.vstack([path[:-1], goal])
@@ -610,7 +652,8 @@ class FieldFollower(ControllerBase):
             self._route.project(q)
         self._update_sub_goal(q, scene)
         target = self._key_nodes[self._index]
-        if self._monitor.update(obs.time, self._remaining(q)) > p.escape_time_limit:
+        stalled = self._monitor.update(obs.time, self._remaining(q))  # [s] without progress
+        if stalled > p.escape_time_limit:
             reason = (f'stuck: no progress toward the goal for {p.escape_time_limit:g} s, near '
                       f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
             return self._fail(obs, reason, target.copy())
@@ -621,6 +664,8 @@ class FieldFollower(ControllerBase):
             self._shape(scene, q)
             if self._route_blocked(obs, scene) and self._replan_now(obs, q, scene):
                 self._shape(scene, q)  # around what blocked the old route
+            elif self._detour_round_people(obs, q, scene, stalled):
+                self._shape(scene, q)
         if self._unreachable is not None:
             return self._stop_unreachable(obs)
         target = self._key_nodes[self._index]  # an escape step or a replan may have changed it
