@@ -74,6 +74,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fusion_planner.core.local_planning import way_out
 from fusion_planner.core.local_planning.local_geometry import points_off_circles
 
 #: Look-ahead of the check [s]: long enough to turn round (pi / max_omega
@@ -357,6 +358,31 @@ def _relevant(q, tracked, params):
     return tracked[gap - MOVING_MARGIN < closing * HORIZON]
 
 
+def _cornered(q, paths, tracked, points, params):
+    """Whether each rollout ``(C, T, 2)`` from ``q`` (2,) ends in a dead end before a walker.
+
+    See :func:`~fusion_planner.core.local_planning.way_out.cornered`; the
+    obstacles are predicted to the end of the horizon.
+    """
+    ahead = tracked.copy()
+    ahead[:, 0:2] += HORIZON * tracked[:, 2:4]
+    return way_out.cornered(q, paths[:, -1], ahead, points, params)
+
+
+def _with_way_out(allowed, q, paths, first_gaps, tracked, points, params):
+    """``allowed`` without the rollouts that end cornered, when some that do not are safe at first.
+
+    A rollout ahead of a person into a dead end is a contact put off past
+    the horizon: it gives way to one that leaves the robot a way out
+    (:func:`_cornered`) and keeps clear of the grown obstacles over
+    ``first_gaps`` ``(C, S)`` [m], even if that one meets them sooner.
+    """
+    free = allowed & ~_cornered(q, paths, tracked, points, params)
+    if np.any(free & np.all(first_gaps >= 0.0, axis=1)):
+        return free
+    return allowed
+
+
 class Evader:
     """The evasion of one controller: :func:`evade` that keeps its forward choices.
 
@@ -441,8 +467,9 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     movers, until = turning_round(tracked)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
-    if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), movers, radius,
-                            until=until)) >= MOVING_MARGIN:
+    ahead = rollout(pose, velocity, nominal, params)
+    if np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN \
+            and not _cornered(q, ahead, tracked, points, params)[0]:
         return command[0], command[1], False, None
     fan = np.vstack([nominal, _targets(params)])
     headings, speeds = _pivots(pose[2], params)
@@ -463,6 +490,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     gaps = obstacle_gaps(paths, movers, radius, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
+    allowed = _with_way_out(allowed, q, paths, gaps[:, :soon], tracked, points, params)
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
         & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= YIELD_MARGIN,
                  axis=1)
