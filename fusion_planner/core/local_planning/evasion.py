@@ -22,7 +22,9 @@ Check
     every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
     it also from each obstacle walking back at its speed (a person ahead may
     turn round; :func:`turning_round`). The evasion's candidates are judged
-    against both as well.
+    against both as well. A rollout that ends in a dead end in front of a
+    walking obstacle (:mod:`~fusion_planner.core.local_planning.way_out`,
+    past the horizon) is not safe either.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
@@ -34,7 +36,9 @@ Evasion
     the static points (scan points not on a tracked obstacle): a rollout that
     would come within :data:`STATIC_MARGIN` of them (or closer than now)
     stops there, pinned, and one that would do so within
-    :data:`STATIC_HORIZON` is refused. Candidates that do not reverse and
+    :data:`STATIC_HORIZON` is refused. Cornered candidates (see Check) are
+    dropped when another keeps clear of the grown obstacles for
+    :data:`YIELD_SAFE_TIME`. Candidates that do not reverse and
     keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion are preferred when there are any; then the latest predicted
     contact wins, then the least intrusion into the margin (its time
@@ -444,7 +448,11 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     A candidate that would come closer to a static point than allowed stops
     there in its rollout (it is pinned, and an obstacle may still walk into
     it); one that would do so within :data:`STATIC_HORIZON` is refused
-    unless every candidate would. When some of the others do not reverse
+    unless every candidate would. One that ends cornered in front of a
+    walking obstacle (:func:`_cornered`) is dropped when another keeps clear
+    of the grown obstacles for :data:`YIELD_SAFE_TIME`; the command itself
+    is kept only when it is safe and does not end cornered. When some of
+    the others do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
     choice is among those, and among those of them that do not
