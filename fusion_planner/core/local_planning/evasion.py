@@ -374,7 +374,7 @@ def _cornered(q, paths, tracked, points, params):
 
 
 def _with_way_out(allowed, q, paths, first_gaps, tracked, points, params):
-    """``allowed`` without the rollouts that end cornered, when some that do not are safe at first.
+    """``allowed`` without the cornered rollouts; None when none of the rest is safe at first.
 
     A rollout ahead of a person into a dead end is a contact put off past
     the horizon: it gives way to one that leaves the robot a way out
@@ -384,7 +384,7 @@ def _with_way_out(allowed, q, paths, first_gaps, tracked, points, params):
     free = allowed & ~_cornered(q, paths, tracked, points, params)
     if np.any(free & np.all(first_gaps >= 0.0, axis=1)):
         return free
-    return allowed
+    return None
 
 
 class Evader:
@@ -450,9 +450,9 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     it); one that would do so within :data:`STATIC_HORIZON` is refused
     unless every candidate would. One that ends cornered in front of a
     walking obstacle (:func:`_cornered`) is dropped when another keeps clear
-    of the grown obstacles for :data:`YIELD_SAFE_TIME`; the command itself
-    is kept only when it is safe and does not end cornered. When some of
-    the others do not reverse
+    of the grown obstacles for :data:`YIELD_SAFE_TIME`; a safe command
+    that ends cornered is kept only when no such other is left. When some
+    of the others do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
     choice is among those, and among those of them that do not
@@ -476,8 +476,8 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
     ahead = rollout(pose, velocity, nominal, params)
-    if np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN \
-            and not _cornered(q, ahead, tracked, points, params)[0]:
+    safe = np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN
+    if safe and not _cornered(q, ahead, tracked, points, params)[0]:
         return command[0], command[1], False, None
     fan = np.vstack([nominal, _targets(params)])
     headings, speeds = _pivots(pose[2], params)
@@ -498,7 +498,11 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     gaps = obstacle_gaps(paths, movers, radius, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
-    allowed = _with_way_out(allowed, q, paths, gaps[:, :soon], tracked, points, params)
+    with_way_out = _with_way_out(allowed, q, paths, gaps[:, :soon], tracked, points, params)
+    if with_way_out is None and safe:
+        return command[0], command[1], False, None  # cornered, but nothing better is safe
+    if with_way_out is not None:
+        allowed = with_way_out
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
         & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= YIELD_MARGIN,
                  axis=1)
