@@ -477,12 +477,12 @@ def test_an_end_ahead_of_a_person_walking_into_a_dead_end_is_cornered():
     ends = np.array([[2.65, -1.0],                               # ahead of them in the pocket
                      [1.0, 0.8],                                 # in the corridor, aside
                      [2.65, 1.5]])                               # behind them
-    assert way_out.cornered(seen_from, ends, person, pocket_walls(), params()).tolist() == \
+    assert way_out.cornered(seen_from, ends, 0.0, person, pocket_walls(), params()).tolist() == \
         [True, False, False]
-    assert not way_out.cornered(seen_from, ends, person, pocket_walls(open_end=True),
+    assert not way_out.cornered(seen_from, ends, 0.0, person, pocket_walls(open_end=True),
                                 params()).any()
     standing = person * [1.0, 1.0, 0.0, 0.0, 1.0]
-    assert not way_out.cornered(seen_from, ends, standing, pocket_walls(), params()).any()
+    assert not way_out.cornered(seen_from, ends, 0.0, standing, pocket_walls(), params()).any()
 
 
 def test_a_wall_seen_at_a_grazing_angle_still_closes_the_pocket():
@@ -498,7 +498,7 @@ def test_a_wall_seen_at_a_grazing_angle_still_closes_the_pocket():
                for b in beams]
     scan = np.array([walls[i[np.argmin(distance[i])]] for i in nearest if len(i)])
     person = np.array([[2.65, 0.0, 0.0, -0.65, 0.3]])
-    assert way_out.cornered(seen_from, np.array([[2.65, -1.5]]), person, scan, params())[0]
+    assert way_out.cornered(seen_from, np.array([[2.65, -1.5]]), 0.0, person, scan, params())[0]
 
 
 def test_the_robot_does_not_run_ahead_of_a_person_into_a_dead_end():

@@ -37,8 +37,8 @@ Evasion
     would come within :data:`STATIC_MARGIN` of them (or closer than now)
     stops there, pinned, and one that would do so within
     :data:`STATIC_HORIZON` is refused. Cornered candidates (see Check) are
-    dropped when another keeps clear of the grown obstacles for
-    :data:`YIELD_SAFE_TIME`. Candidates that do not reverse and
+    dropped when another keeps clear of the grown obstacles over the whole
+    horizon. Candidates that do not reverse and
     keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion are preferred when there are any; then the latest predicted
     contact wins, then the least intrusion into the margin (its time
@@ -365,24 +365,23 @@ def _relevant(q, tracked, params):
 def _cornered(q, paths, tracked, points, params):
     """Whether each rollout ``(C, T, 2)`` from ``q`` (2,) ends in a dead end before a walker.
 
-    See :func:`~fusion_planner.core.local_planning.way_out.cornered`; the
-    obstacles are predicted to the end of the horizon.
+    See :func:`~fusion_planner.core.local_planning.way_out.cornered`.
     """
-    ahead = tracked.copy()
-    ahead[:, 0:2] += HORIZON * tracked[:, 2:4]
-    return way_out.cornered(q, paths[:, -1], ahead, points, params)
+    return way_out.cornered(q, paths[:, -1], HORIZON, tracked, points, params)
 
 
-def _with_way_out(allowed, q, paths, first_gaps, tracked, points, params):
-    """``allowed`` without the cornered rollouts; None when none of the rest is safe at first.
+def _with_way_out(allowed, q, paths, gaps, tracked, points, params):
+    """``allowed`` without the cornered rollouts; None when none of the rest is safe.
 
     A rollout ahead of a person into a dead end is a contact put off past
     the horizon: it gives way to one that leaves the robot a way out
-    (:func:`_cornered`) and keeps clear of the grown obstacles over
-    ``first_gaps`` ``(C, S)`` [m], even if that one meets them sooner.
+    (:func:`_cornered`) when one keeps clear of the grown obstacles for the
+    whole horizon (``gaps`` ``(C, T)`` [m] all >= 0). A robot already
+    cornered, whose only ways out squeeze past the person, keeps choosing
+    by the latest contact.
     """
     free = allowed & ~_cornered(q, paths, tracked, points, params)
-    if np.any(free & np.all(first_gaps >= 0.0, axis=1)):
+    if np.any(free & np.all(gaps >= 0.0, axis=1)):
         return free
     return None
 
@@ -450,7 +449,7 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     it); one that would do so within :data:`STATIC_HORIZON` is refused
     unless every candidate would. One that ends cornered in front of a
     walking obstacle (:func:`_cornered`) is dropped when another keeps clear
-    of the grown obstacles for :data:`YIELD_SAFE_TIME`; a safe command
+    of the grown obstacles over the whole horizon; a safe command
     that ends cornered is kept only when no such other is left. When some
     of the others do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
@@ -498,7 +497,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     gaps = obstacle_gaps(paths, movers, radius, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
-    with_way_out = _with_way_out(allowed, q, paths, gaps[:, :soon], tracked, points, params)
+    with_way_out = _with_way_out(allowed, q, paths, gaps, tracked, points, params)
     if with_way_out is None and safe:
         return command[0], command[1], False, None  # cornered, but nothing better is safe
     if with_way_out is not None:

@@ -14,10 +14,11 @@ person gets there.
 Band
     For a tracked obstacle walking at :data:`MIN_WALKING_SPEED` or more,
     predicted at the end of the escape at ``X`` with unit heading ``u``: the
-    points within ``w = radius + robot_radius + PASSING_ROOM`` (widening by
-    :data:`BAND_SPREAD` per metre ahead) across ``u`` of the line
-    ``X + a u``, ``a > -w``. A robot centre outside it is passed; one inside
-    is in the way (ahead of the person, or beside them too close).
+    points within ``w = radius + robot_radius + PASSING_ROOM`` across ``u``
+    of the line ``X + a u``, ``a > -w``, widening by :data:`BAND_SPREAD`
+    per metre the person walks from now (the error of a track's heading).
+    A robot centre outside it is passed; one inside is in the way (ahead of
+    the person, or beside them too close).
 Room
     The band and one cell beyond each of its edges, sampled on a grid of
     :data:`CELL` [m] aligned with ``u``, from the person to
@@ -50,7 +51,7 @@ Examples
 ...                  + [[x, -3.0] for x in np.arange(-0.65, 0.66, 0.05)])
 >>> person = np.array([[0.0, 0.5, 0.0, -0.6, 0.3]])          # walks down a dead-end pocket
 >>> ends = np.array([[0.0, -1.0], [0.0, 1.5]])               # ahead of them, behind them
->>> cornered(np.array([0.0, 1.0]), ends, person, walls, p).tolist()
+>>> cornered(np.array([0.0, 1.0]), ends, 0.0, person, walls, p).tolist()
 [True, False]
 """
 
@@ -73,9 +74,9 @@ MIN_WALKING_SPEED = 0.2
 #: error of a track's position.
 PASSING_ROOM = 0.2
 
-#: Widening of the band [m] per metre along it: the error of a track's heading
-#: (about 3 degrees).
-BAND_SPREAD = 0.05
+#: Widening of the band [m] per metre the person walks from now: the error of a
+#: track's heading (about 4.5 degrees).
+BAND_SPREAD = 0.08
 
 #: A band free this long [s] at the robot's top speed beyond the robot's end is
 #: room to keep going: the robot is not cornered.
@@ -90,7 +91,7 @@ BEARING_BINS = 360
 _NEIGHBOURS = np.ones((3, 3), bool)
 
 
-def cornered(q, ends, tracked, points, params):
+def cornered(q, ends, time, tracked, points, params):
     """Whether each robot end position lies in a dead end in front of a walking person.
 
     Parameters
@@ -99,9 +100,11 @@ def cornered(q, ends, tracked, points, params):
         The robot's position now [m]: where the scan was taken from.
     ends : ndarray, shape (C, 2)
         Robot positions [m] at the end of the look-ahead.
+    time : float
+        The look-ahead [s]: when the robot is at ``ends``.
     tracked : ndarray, shape (K, 5)
         ``x, y, vx, vy, radius`` [m, m, m/s, m/s, m] of the tracked
-        obstacles, predicted to the same instant.
+        obstacles now; they go on at their velocity.
     points : ndarray, shape (M, 2)
         The scan's hit points [m]; all of them hide what lies behind them,
         those farther than
@@ -118,7 +121,7 @@ def cornered(q, ends, tracked, points, params):
     """
     result = np.zeros(len(ends), bool)
     walking = tracked[np.hypot(tracked[:, 2], tracked[:, 3]) >= MIN_WALKING_SPEED]
-    in_way = [_in_way(ends, mover, params) for mover in walking]
+    in_way = [_Band(mover, time, params).holds(ends) for mover in walking]
     if not np.any(in_way):
         return result
     static = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
@@ -127,7 +130,7 @@ def cornered(q, ends, tracked, points, params):
     room = _Room(q, points, static, params.robot_radius)
     for mover, mask in zip(walking, in_way):
         if np.any(mask):
-            result[mask] |= _cornered_by(ends[mask], mover, room, params)
+            result[mask] |= _cornered_by(ends[mask], _Band(mover, time, params), room, params)
     return result
 
 
@@ -172,33 +175,52 @@ def _bearing_bins(bearings):
         % BEARING_BINS
 
 
-def _frame(mover, params):
-    """Origin (2,), heading (2,), normal (2,) [m], speed [m/s] and half width [m] of a band."""
-    speed = math.hypot(mover[2], mover[3])
-    heading = mover[2:4] / speed
-    half_width = mover[4] + params.robot_radius + PASSING_ROOM
-    return mover[0:2], heading, np.array([-heading[1], heading[0]]), speed, half_width
+class _Band:
+    """The band a walking obstacle sweeps ahead of it from the end of the look-ahead.
+
+    Attributes
+    ----------
+    origin, heading, normal : ndarray, shape (2,)
+        The obstacle's predicted centre [m] and unit heading and left normal.
+    speed : float
+        [m/s].
+    half_width : float
+        Half width [m] at the origin: radius, robot radius,
+        :data:`PASSING_ROOM` and :data:`BAND_SPREAD` of the distance walked
+        to it.
+    """
+
+    def __init__(self, mover, time, params):
+        self.speed = math.hypot(mover[2], mover[3])
+        self.heading = mover[2:4] / self.speed
+        self.normal = np.array([-self.heading[1], self.heading[0]])
+        self.origin = mover[0:2] + time * mover[2:4]
+        self.half_width = mover[4] + params.robot_radius + PASSING_ROOM \
+            + BAND_SPREAD * self.speed * time
+
+    def coordinates(self, points):
+        """Along and across ``(N,)`` [m] of ``points`` ``(N, 2)`` in the band's frame."""
+        rel = points - self.origin
+        return rel @ self.heading, rel @ self.normal
+
+    def holds(self, ends):
+        """Mask ``(C,)`` of the ends ``(C, 2)`` in the way: inside the band, not behind it."""
+        along, across = self.coordinates(ends)
+        return (along > -self.half_width) & (np.abs(across) < self.half_width)
 
 
-def _in_way(ends, mover, params):
-    """Mask ``(C,)`` of the ends inside the band ahead of ``mover`` (5,)."""
-    origin, heading, normal, _, half_width = _frame(mover, params)
-    rel = ends - origin
-    return (rel @ heading > -half_width) & (np.abs(rel @ normal) < half_width)
-
-
-def _cornered_by(ends, mover, room, params):
-    """For ends ``(C, 2)`` inside ``mover``'s band: cornered ``(C,)`` (module notes)."""
-    origin, heading, normal, speed, half_width = _frame(mover, params)
-    v = params.max_speed
-    along, across = (ends - origin) @ heading, (ends - origin) @ normal
+def _cornered_by(ends, band, room, params):
+    """For ends ``(C, 2)`` inside ``band`` (a :class:`_Band`): cornered ``(C,)`` (module notes)."""
+    speed, half_width, v = band.speed, band.half_width, params.max_speed
+    along, across = band.coordinates(ends)
     far = float(np.max(along)) + v * RUN_ON_TIME
     first = -int(math.ceil(half_width / CELL))
     rows = np.arange(first, int(math.ceil(far / CELL)) + 1) * CELL             # (R,)
     widths = half_width + BAND_SPREAD * np.maximum(rows, 0.0)                   # (R,)
     edge = int(math.ceil(widths[-1] / CELL))
     cols = np.arange(-edge, edge + 1) * CELL                                    # (W,)
-    samples = origin + rows[:, None, None] * heading + cols[None, :, None] * normal
+    samples = band.origin + rows[:, None, None] * band.heading \
+        + cols[None, :, None] * band.normal
     free = room.fits(samples.reshape(-1, 2)).reshape(len(rows), len(cols))
     beside = np.abs(cols)[None, :] >= widths[:, None] - 1e-9                    # (R, W)
     met = np.minimum((along * speed + half_width * v) / (v + speed), along)
