@@ -227,12 +227,18 @@ def _cornered_by(ends, band, room, params):
     caught = np.full(len(ends), math.inf) if v >= speed else \
         (along * speed - half_width * v) / (speed - v)
     out = np.zeros(len(ends), bool)
+    stretches = {}  # labelled free samples per stretch of rows the robot can reach
     for i in range(len(ends)):
-        reach = free & ((rows >= met[i]) & (rows <= caught[i]))[:, None]
+        stretch = (int(np.searchsorted(rows, met[i] - 1e-9)),
+                   int(np.searchsorted(rows, caught[i] + 1e-9)))
+        if stretch not in stretches:
+            reach = free.copy()
+            reach[:stretch[0]] = reach[stretch[1]:] = False
+            stretches[stretch] = reach, ndimage.label(reach, structure=_NEIGHBOURS)[0]
+        reach, labels = stretches[stretch]
         start = _start_cell(reach, along[i] / CELL - first, across[i] / CELL + edge)
         if start is None:
             continue
-        labels = ndimage.label(reach, structure=_NEIGHBOURS)[0]
         region = labels == labels[start]
         out[i] = not (np.any(region & beside) or np.any(region[-1]))
     return out
