@@ -20,10 +20,11 @@ Band
     A robot centre outside it is passed; one inside is in the way (ahead of
     the person, or beside them too close).
 Room
-    The band and one cell beyond each of its edges, sampled on a grid of
-    :data:`CELL` [m] aligned with ``u``, from the person to
-    :data:`RUN_ON_TIME` of the robot's top speed beyond the robot; a sample
-    is free when no static point is within ``robot_radius`` of it.
+    The band and the samples just beside it, on a grid of :data:`CELL` [m]
+    aligned with ``u``, from ``w`` behind the person to :data:`RUN_ON_TIME`
+    of the robot's top speed beyond the robot; a sample is free when the
+    robot's disc fits there: no static point within ``robot_radius`` of it,
+    and the scan saw through the disc (:class:`_Room`).
 Race
     The robot at ``a0`` along the band can reach the stretch of it it gets
     to before the person does: going back towards them it meets them at
@@ -37,8 +38,9 @@ Verdict
     far end of the sampled band (room to keep going): not cornered.
     Otherwise cornered.
 
-Only the static scan points count: other people, the known map and what
-the scan has not seen are free.
+Only the scan counts: the known map is not used, other people do not
+block (each sweeps a band of its own), and what the scan has not seen is
+no room.
 
 Frames and units: map frame, metres, seconds.
 
