@@ -15,10 +15,11 @@ Band
     For a tracked obstacle walking at :data:`MIN_WALKING_SPEED` or more,
     predicted at the end of the escape at ``X`` with unit heading ``u``: the
     points within ``w = radius + robot_radius + PASSING_ROOM`` across ``u``
-    of the line ``X + a u``, ``a > -w``, widening by :data:`BAND_SPREAD`
-    per metre the person walks from now (the error of a track's heading).
-    A robot centre outside it is passed; one inside is in the way (ahead of
-    the person, or beside them too close).
+    of the line ``X + a u``, widening by :data:`BAND_SPREAD` per metre the
+    person walks from now (the error of a track's heading). A robot centre
+    in it and less than ``radius + robot_radius`` behind the person is in
+    the way (ahead of them, or beside them too close); one outside it is
+    passed, one farther behind follows.
 Room
     The band and the samples just beside it, on a grid of :data:`CELL` [m]
     aligned with ``u``, from ``w`` behind the person to :data:`RUN_ON_TIME`
@@ -186,10 +187,11 @@ class _Band:
         The obstacle's predicted centre [m] and unit heading and left normal.
     speed : float
         [m/s].
+    touch : float
+        Radius plus robot radius [m].
     half_width : float
-        Half width [m] at the origin: radius, robot radius,
-        :data:`PASSING_ROOM` and :data:`BAND_SPREAD` of the distance walked
-        to it.
+        Half width [m] at the origin: :attr:`touch`, :data:`PASSING_ROOM`
+        and :data:`BAND_SPREAD` of the distance walked to it.
     """
 
     def __init__(self, mover, time, params):
@@ -197,8 +199,8 @@ class _Band:
         self.heading = mover[2:4] / self.speed
         self.normal = np.array([-self.heading[1], self.heading[0]])
         self.origin = mover[0:2] + time * mover[2:4]
-        self.half_width = mover[4] + params.robot_radius + PASSING_ROOM \
-            + BAND_SPREAD * self.speed * time
+        self.touch = mover[4] + params.robot_radius
+        self.half_width = self.touch + PASSING_ROOM + BAND_SPREAD * self.speed * time
 
     def coordinates(self, points):
         """Along and across ``(N,)`` [m] of ``points`` ``(N, 2)`` in the band's frame."""
@@ -206,9 +208,13 @@ class _Band:
         return rel @ self.heading, rel @ self.normal
 
     def holds(self, ends):
-        """Mask ``(C,)`` of the ends ``(C, 2)`` in the way: inside the band, not behind it."""
+        """Mask ``(C,)`` of the ends ``(C, 2)`` in the way: inside the band, ahead or beside.
+
+        Beside: less than :attr:`touch` behind the person's centre (a robot
+        following farther behind is not in their way).
+        """
         along, across = self.coordinates(ends)
-        return (along > -self.half_width) & (np.abs(across) < self.half_width)
+        return (along > -self.touch) & (np.abs(across) < self.half_width)
 
 
 def _cornered_by(ends, band, room, params):
