@@ -22,9 +22,10 @@ Check
     every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
     it also from each obstacle walking back at its speed (a person ahead may
     turn round; :func:`turning_round`). The evasion's candidates are judged
-    against both as well. A rollout that ends in a dead end in front of a
-    walking obstacle (:mod:`~fusion_planner.core.local_planning.way_out`,
-    past the horizon) is not safe either.
+    against both as well. A safe command whose rollout ends in a dead end
+    in front of a walking obstacle
+    (:mod:`~fusion_planner.core.local_planning.way_out`, past the horizon)
+    is replaced all the same when a candidate that leaves a way out is safe.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
