@@ -14,14 +14,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from fusion_planner.core.local_planning import evasion
+from fusion_planner.core.local_planning import evasion, way_out
 from fusion_planner.core.local_planning.apf import ApfParams
 from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut
 from fusion_planner.core.local_planning.follow import (
     CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
     Observation, make_controller, thin_points)
 from fusion_planner.core.grid import GridMap
-from fusion_planner.core.simulation.world import BounceMotion, MovingObstacle, RobotSpec, World
+from fusion_planner.core.simulation.dynamic_families import scenario_of
+from fusion_planner.core.simulation.episodes import run_episode
+from fusion_planner.core.simulation.world import (
+    BounceMotion, MovingObstacle, RobotSpec, WaypointMotion, World)
 
 DT = 0.05            # control period and integration step [s]
 RADIUS = 0.2         # robot radius [m]
@@ -450,6 +453,69 @@ def test_evasion_ignores_scan_points_on_the_tracked_person():
     person = [[1.2, 0.0, -0.35, 0.0, 0.3]]
     points = np.vstack([SLIT, circle((1.2, 0.0), 0.3)])
     assert evade_now((0.0, 0.0), person, points) == evade_now((0.0, 0.0), person, SLIT)
+
+
+def pocket_walls(open_end=False):
+    """A corridor along x (y in [0, 2]) with a 1.3 m side pocket going down from x in [2, 3.3].
+
+    The pocket is 3.4 m deep and closed at its end, or ``open_end``: it goes on 8 m.
+    """
+    depth = 8.0 if open_end else 3.4
+    walls = [wall((-1.0, 2.0), (7.0, 2.0)), wall((-1.0, 0.0), (2.0, 0.0)),
+             wall((3.3, 0.0), (7.0, 0.0)), wall((2.0, 0.0), (2.0, -depth)),
+             wall((3.3, 0.0), (3.3, -depth))]
+    if not open_end:
+        walls.append(wall((2.0, -depth), (3.3, -depth)))
+    return np.vstack(walls)
+
+
+def test_an_end_ahead_of_a_person_walking_into_a_dead_end_is_cornered():
+    """Running ahead of a person into a pocket they walk down leaves no way out; a pocket that
+    goes on, a place beside them in the corridor, or one behind them does."""
+    person = np.array([[2.65, 0.5, 0.0, -0.65, 0.3]])           # walking down into the pocket
+    seen_from = np.array([2.65, 1.6])
+    ends = np.array([[2.65, -1.0],                               # ahead of them in the pocket
+                     [1.0, 0.8],                                 # in the corridor, aside
+                     [2.65, 1.5]])                               # behind them
+    assert way_out.cornered(seen_from, ends, 0.0, person, pocket_walls(), params()).tolist() == \
+        [True, False, False]
+    assert not way_out.cornered(seen_from, ends, 0.0, person, pocket_walls(open_end=True),
+                                params()).any()
+    standing = person * [1.0, 1.0, 0.0, 0.0, 1.0]
+    assert not way_out.cornered(seen_from, ends, 0.0, standing, pocket_walls(), params()).any()
+
+
+def test_a_wall_seen_at_a_grazing_angle_still_closes_the_pocket():
+    """Seen from beside the mouth, a pocket's near wall leaves its returns far apart; what the
+    wall hides is not room to step out of the person's way."""
+    walls = pocket_walls()
+    seen_from = np.array([2.25, 0.4])                            # beside the mouth, near the wall
+    direction = walls - seen_from
+    bearing = np.arctan2(direction[:, 1], direction[:, 0])
+    distance = np.hypot(direction[:, 0], direction[:, 1])
+    beams = np.radians(np.arange(-180.0, 180.0, 1.0))             # one return per degree
+    nearest = [np.flatnonzero(np.abs(np.angle(np.exp(1j * (bearing - b)))) < np.radians(0.5))
+               for b in beams]
+    scan = np.array([walls[i[np.argmin(distance[i])]] for i in nearest if len(i)])
+    person = np.array([[2.65, 0.0, 0.0, -0.65, 0.3]])
+    assert way_out.cornered(seen_from, np.array([[2.65, -1.5]]), 0.0, person, scan, params())[0]
+
+
+def test_the_robot_does_not_run_ahead_of_a_person_into_a_dead_end():
+    """A person walks out of a dead-end side corridor into the robot's corridor and back in as
+    the robot reaches its mouth: the robot waits in its corridor and lets them go, it does not
+    flee ahead of them into the side corridor (where they would corner it)."""
+    occupied = np.ones((90, 140), bool)                          # 0.1 m cells
+    occupied[35:55, 1:-1] = False                                # the corridor: y in [3.5, 5.5]
+    occupied[55:89, 52:66] = False                               # the pocket: x in [5.2, 6.6]
+    person = MovingObstacle(0.25, WaypointMotion(((5.93, 8.5), (5.93, 3.8)), 0.67))
+    scenario = scenario_of('pocket', 0, GridMap(occupied, 0.1), (1.0, 4.6, 0.0), (13.0, 4.9),
+                           [person])
+    result = run_episode(scenario, 'fusion', perception='scan')
+    assert result.reached and result.collisions == 0
+    assert np.max(result.trajectory[:, 1]) < 5.5 - RADIUS + 0.05   # never in the pocket
+    gaps = np.hypot(*(result.obstacle_tracks[:, 0] - result.trajectory[:, 0:2]).T)
+    assert np.min(gaps) < 1.0                                    # they did meet
 
 
 # -- replanning ------------------------------------------------------------

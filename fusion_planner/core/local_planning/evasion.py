@@ -22,7 +22,10 @@ Check
     every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
     it also from each obstacle walking back at its speed (a person ahead may
     turn round; :func:`turning_round`). The evasion's candidates are judged
-    against both as well.
+    against both as well. A safe command whose rollout ends in a dead end
+    in front of a walking obstacle
+    (:mod:`~fusion_planner.core.local_planning.way_out`, past the horizon)
+    is replaced all the same when a candidate that leaves a way out is safe.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
     up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
@@ -34,7 +37,9 @@ Evasion
     the static points (scan points not on a tracked obstacle): a rollout that
     would come within :data:`STATIC_MARGIN` of them (or closer than now)
     stops there, pinned, and one that would do so within
-    :data:`STATIC_HORIZON` is refused. Candidates that do not reverse and
+    :data:`STATIC_HORIZON` is refused. Cornered candidates (see Check) are
+    dropped when another keeps clear of the grown obstacles over the whole
+    horizon. Candidates that do not reverse and
     keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion are preferred when there are any; then the latest predicted
     contact wins, then the least intrusion into the margin (its time
@@ -74,6 +79,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fusion_planner.core.local_planning import way_out
 from fusion_planner.core.local_planning.local_geometry import points_off_circles
 
 #: Look-ahead of the check [s]: long enough to turn round (pi / max_omega
@@ -357,6 +363,30 @@ def _relevant(q, tracked, params):
     return tracked[gap - MOVING_MARGIN < closing * HORIZON]
 
 
+def _cornered(q, paths, tracked, points, params):
+    """Whether each rollout ``(C, T, 2)`` from ``q`` (2,) ends in a dead end before a walker.
+
+    See :func:`~fusion_planner.core.local_planning.way_out.cornered`.
+    """
+    return way_out.cornered(q, paths[:, -1], HORIZON, tracked, points, params)
+
+
+def _with_way_out(allowed, q, paths, gaps, tracked, points, params):
+    """``allowed`` without the cornered rollouts; None when none of the rest is safe.
+
+    A rollout ahead of a person into a dead end is a contact put off past
+    the horizon: it gives way to one that leaves the robot a way out
+    (:func:`_cornered`) when one keeps clear of the grown obstacles for the
+    whole horizon (``gaps`` ``(C, T)`` [m] all >= 0). A robot already
+    cornered, whose only ways out squeeze past the person, keeps choosing
+    by the latest contact.
+    """
+    free = allowed & ~_cornered(q, paths, tracked, points, params)
+    if np.any(free & np.all(gaps >= 0.0, axis=1)):
+        return free
+    return None
+
+
 class Evader:
     """The evasion of one controller: :func:`evade` that keeps its forward choices.
 
@@ -418,7 +448,11 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     A candidate that would come closer to a static point than allowed stops
     there in its rollout (it is pinned, and an obstacle may still walk into
     it); one that would do so within :data:`STATIC_HORIZON` is refused
-    unless every candidate would. When some of the others do not reverse
+    unless every candidate would. One that ends cornered in front of a
+    walking obstacle (:func:`_cornered`) is dropped when another keeps clear
+    of the grown obstacles over the whole horizon; a safe command
+    that ends cornered is kept only when no such other is left. When some
+    of the others do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
     choice is among those, and among those of them that do not
@@ -441,8 +475,9 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     movers, until = turning_round(tracked)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
-    if np.min(obstacle_gaps(rollout(pose, velocity, nominal, params), movers, radius,
-                            until=until)) >= MOVING_MARGIN:
+    ahead = rollout(pose, velocity, nominal, params)
+    safe = np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN
+    if safe and not _cornered(q, ahead, tracked, points, params)[0]:
         return command[0], command[1], False, None
     fan = np.vstack([nominal, _targets(params)])
     headings, speeds = _pivots(pose[2], params)
@@ -463,6 +498,11 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
     gaps = obstacle_gaps(paths, movers, radius, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
+    with_way_out = _with_way_out(allowed, q, paths, gaps, tracked, points, params)
+    if with_way_out is None and safe:
+        return command[0], command[1], False, None  # cornered, but nothing better is safe
+    if with_way_out is not None:
+        allowed = with_way_out
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
         & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= YIELD_MARGIN,
                  axis=1)
