@@ -7,6 +7,7 @@ import pytest
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
+from fusion_planner.core.local_planning.scan_segments import map_explained_mask, segment_scan
 from fusion_planner.core.local_planning.scan_tracker import ScanTracker, TrackerParams
 from fusion_planner.core.simulation.world import (
     Circle, RobotSpec, ScanConfig, ray_circle_distances, World)
@@ -270,3 +271,32 @@ def test_walkers_who_part_do_not_swing_a_track_the_wrong_way():
             near_left = math.hypot(x - left[k, 0], y - left[k, 1]) < 0.3
             truth = (0.0, 0.6) if near_left else (0.8, 0.0)
             assert math.hypot(vx - truth[0], vy - truth[1]) < 0.5, (k, report.states)
+
+
+def test_two_walkers_side_by_side_are_two_tracks():
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(30) * DT
+    # shoulder to shoulder (touching), walking at the laser
+    x = 9.0 - 0.5 * t
+    pair = np.stack([np.stack([x, np.full_like(t, 9.7)], axis=1),
+                     np.stack([x, np.full_like(t, 10.3)], axis=1)], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, pair)
+    final = reports[-1]
+    assert len(final.ids) == 2
+    for (px, py, vx, vy), radius in zip(final.states, final.radii):
+        assert min(abs(py - 9.7), abs(py - 10.3)) < 0.15
+        assert math.hypot(vx + 0.5, vy) < 0.2
+        assert radius < 0.45
+
+
+def test_range_noise_does_not_cut_a_walker_in_two():
+    grid = open_map()
+    explained = map_explained_mask(grid, TrackerParams().map_tolerance)
+    origin = np.array([3.0, 10.0, 0.0])
+    clean = scan_of(grid, origin, [[4.5, 10.0]])               # 1.5 m ahead: many beams
+    noise = np.random.default_rng(7).normal(0.0, 0.02, size=(500, BEAMS))   # twice the simulated noise
+    p = TrackerParams()
+    counts = [len(segment_scan(ANGLES, clean + n, origin, grid, explained, p.cluster_gap,
+                               p.min_points, p.split_depth).centers) for n in noise]
+    assert counts == [1] * len(noise)

@@ -4,7 +4,9 @@ One scan becomes a set of :class:`Segments`: the returns that lie on (or
 within a tolerance of) an occupied cell of the known map, or on the map's
 edge, are explained and dropped; the rest are cut into runs of adjacent beams
 whose hit points lie close together (a range jump or an explained or missing
-return ends a run). Each run is an object candidate with a centre, a radius
+return ends a run). A run is also cut where its range peaks between two
+nearer stretches (the notch between two people side by side: a convex object
+never shows one). Each run is an object candidate with a centre, a radius
 and its angular extent.
 
 Everything is one numpy pass over the beams; nothing loops over beams or
@@ -22,7 +24,7 @@ Examples
 >>> angles = np.linspace(-0.2, 0.2, 9)
 >>> ranges = np.full(9, 3.0)                 # a short arc 3 m ahead
 >>> segments = segment_scan(angles, ranges, np.array([2.0, 5.0, 0.0]), grid, explained,
-...                         gap=0.3, min_points=2)
+...                         gap=0.3, min_points=2, split_depth=0.15)
 >>> len(segments.centers), bool(segments.centers[0, 0] > 4.9)
 (1, True)
 """
@@ -32,10 +34,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from scipy.signal import find_peaks
 
 #: Cap on the sine of a run's half angle in the circle estimate (a run this
 #: wide is far larger than any tracked object anyway).
 MAX_HALF_ANGLE_SIN = 0.9
+#: Range [m] that stands for "no return" in the notch search: higher than any return.
+_WALL = 1e9
 
 
 @dataclass(frozen=True)
@@ -142,7 +147,7 @@ def explained_by_map(points, valid, grid, explained_mask):
     return valid & explained_mask[rows, cols]
 
 
-def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
+def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, split_depth):
     """Cut a scan's unexplained returns into object candidates.
 
     Parameters
@@ -159,6 +164,11 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
         objects.
     min_points : int
         Runs with fewer returns are dropped (a lone return is not an object).
+    split_depth : float
+        A run is cut at a beam whose range exceeds the nearest return on
+        each side of it within the run by more than this [m] (a notch
+        between two objects); far above the range noise, so that noise on
+        one object's face does not cut it.
 
     Returns
     -------
@@ -184,6 +194,7 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
     step = np.hypot(*np.diff(points, axis=0).T)
     with np.errstate(invalid='ignore'):
         linked = own[:-1] & own[1:] & (step <= gap)
+    linked[_notches(ranges, own, linked, split_depth)] = False
     starts = own.copy()
     starts[1:] &= ~linked
     label = np.cumsum(starts) - 1
@@ -216,6 +227,32 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points):
     return Segments(centers=centers[keep], radii=radii[keep], counts=count[keep],
                     occluded=occluded[keep], unexplained=unexplained,
                     labels=renumber[label[own]])
+
+
+def _notches(ranges, own, linked, depth):
+    """Beams ``i`` inside runs whose range peaks more than ``depth`` [m] above both sides.
+
+    The peak's prominence is measured within its run: between each pair of
+    adjacent beams goes a sample that walls the runs off where they are
+    not linked and is the lower of the two ranges where they are (which
+    neither makes nor hides a peak).
+
+    Returns
+    -------
+    ndarray, int64
+        The beams; the link from each to the next beam is to be cut.
+    """
+    n = len(ranges)
+    if n < 3:
+        return np.zeros(0, np.int64)
+    profile = np.full(2 * n - 1, _WALL)
+    profile[0::2] = np.where(own, ranges, _WALL)
+    profile[1::2] = np.where(linked, np.fmin(ranges[:-1], ranges[1:]), _WALL)
+    peaks, _ = find_peaks(profile, prominence=depth)
+    beams = peaks[peaks % 2 == 0] // 2
+    inside = (beams > 0) & (beams < n - 1)
+    beams = beams[inside]
+    return beams[linked[beams - 1] & linked[beams]]
 
 
 def _nearer_beside(ranges, beside, own, gap, full_circle):

@@ -5,7 +5,8 @@ controller avoids (:attr:`Observation.tracked`):
 
 1. **Map explanation and segmentation** (:mod:`scan_segments`): returns on the
    known map are dropped, the rest cut into object candidates (centre,
-   radius) by beam adjacency and range jumps. Candidates wider than
+   radius) by beam adjacency, range jumps and notches (two people shoulder
+   to shoulder). Candidates wider than
    ``max_object_radius`` are static structure and are not tracked.
 2. **Prediction**: every track is a constant-velocity Kalman filter (state
    ``x, y, vx, vy``, white-noise acceleration of ``acceleration_std``),
@@ -113,6 +114,9 @@ class TrackerParams:
         Adjacent returns farther apart [m] belong to different objects.
     min_points : int
         Fewer returns than this are not an object.
+    split_depth : float
+        A run of returns is cut where its range peaks this much [m] above
+        both sides (two people side by side).
     max_object_radius : float
         Candidates with a larger radius [m] are static structure.
     measurement_std : float
@@ -157,6 +161,7 @@ class TrackerParams:
     map_tolerance: float = 0.15
     cluster_gap: float = 0.3
     min_points: int = 2
+    split_depth: float = 0.15
     max_object_radius: float = 0.6
     measurement_std: float = 0.05
     acceleration_std: float = 1.0
@@ -175,7 +180,8 @@ class TrackerParams:
     max_tracks: int = 100
 
     def __post_init__(self):
-        for name in ('map_tolerance', 'cluster_gap', 'max_object_radius', 'measurement_std',
+        for name in ('map_tolerance', 'cluster_gap', 'split_depth', 'max_object_radius',
+                     'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
                      'size_ratio',
                      'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
@@ -316,7 +322,7 @@ class ScanTracker:
         self._predict(dt)
         p = self.params
         segments = segment_scan(angles, ranges, origin, self.grid, self._explained,
-                                p.cluster_gap, p.min_points)
+                                p.cluster_gap, p.min_points, p.split_depth)
         staying = self._staying(segments)
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
