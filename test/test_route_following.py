@@ -172,6 +172,18 @@ def test_a_person_walking_along_the_route_is_passed_on_the_roomier_side_and_kept
     assert side == 1 and right == pytest.approx(-(0.1 + 0.6))
 
 
+def test_a_side_that_has_become_a_little_too_narrow_is_not_given_up_across_the_persons_way():
+    route = Route(np.array([[0.0, 0.0], [10.0, 0.0]]))
+    person = np.array([[3.0, -0.15, -0.35, 0.0, 0.3]])
+    # on its left, 0.62 - 0.2 m for the robot's centre, 0.45 m of it within the person's
+    # reach (radii and margin): 3 cm short, and plenty of room on its right
+    _, right, side = passing_bounds(route, person, 0.62, 1.5, PARAMS, 1)
+    assert side == 1 and right == pytest.approx(-(-0.15 + 0.6))
+    # no room on the left even without the margin: over to the right
+    _, _, side = passing_bounds(route, person, 0.5, 1.5, PARAMS, 1)
+    assert side == -1
+
+
 def test_no_bounds_for_a_crossing_person_a_person_far_ahead_or_no_room():
     route = Route(np.array([[0.0, 0.0], [20.0, 0.0]]))
     crossing = np.array([[3.0, 0.0, 0.0, 0.4, 0.3]])

@@ -7,7 +7,8 @@ People do better: each keeps to one side and they pass. :func:`passing_bounds`
 picks, for the tracked obstacles near the route within :data:`YIELD_RANGE`
 ahead that walk along it (head-on or the same way, not across: a person
 crossing is avoided by the field at their predicted positions), the side with more free width between them and the walls (and keeps
-that side while they stay), and returns how far across the route the robot
+that side while they stay and the robot fits there: a switch crosses the
+person's way), and returns how far across the route the robot
 may then go: the carrot is shifted into that gap, and the evasion check lets
 the robot wait there while the person passes
 (see :mod:`~fusion_planner.core.local_planning.evasion`). A person walking up
@@ -63,7 +64,7 @@ def passing_bounds(route, tracked, wall_left, wall_right, params, previous_side)
     previous_side : int
         The side kept on the last step (+1 left of the people, -1 right of
         them, 0 none): kept while people are still on the route and the
-        robot fits there.
+        robot fits there, if need be without :data:`PASSING_MARGIN`.
 
     Returns
     -------
@@ -84,7 +85,10 @@ def passing_bounds(route, tracked, wall_left, wall_right, params, previous_side)
     free_left = (wall_left - r) - float(np.max(offsets + reach))
     free_right = (wall_right - r) + float(np.min(offsets - reach))
     side = previous_side
-    if side == 0 or min(free_left if side > 0 else free_right, 0.0) < 0.0:
+    # a side is kept while the robot fits there without the margin: giving it up
+    # means crossing the person's way, not worth it for a few centimetres of
+    # tracker noise
+    if side == 0 or (free_left if side > 0 else free_right) < -PASSING_MARGIN:
         side = 1 if free_left > free_right else -1
     if max(free_left, free_right) < 0.0:
         return math.inf, math.inf, 0  # no room on either side: the field and the evasion decide
