@@ -153,8 +153,14 @@ class _Room:
         self.tree = cKDTree(static)
         rel = points - q
         bins = _bearing_bins(np.arctan2(rel[:, 1], rel[:, 0]))
-        self.nearest = np.full(BEARING_BINS, math.inf)            # per bearing bin [m]
-        np.minimum.at(self.nearest, bins, np.hypot(rel[:, 0], rel[:, 1]))
+        nearest = np.full(BEARING_BINS, math.inf)                 # per bearing bin [m]
+        np.minimum.at(nearest, bins, np.hypot(rel[:, 0], rel[:, 1]))
+        # nearest return over 2**k bins from each bin on (wrapping), for every k:
+        # the minimum over any run of bins is then that of two overlapping powers of two
+        levels = [nearest]
+        while 2 ** len(levels) <= BEARING_BINS:
+            levels.append(np.minimum(levels[-1], np.roll(levels[-1], -2 ** (len(levels) - 1))))
+        self.run_minima = np.stack(levels)                       # (K, BEARING_BINS)
 
     def fits(self, centres):
         """Mask ``(N,)`` of the centres ``(N, 2)`` [m] where the robot's disc fits."""
@@ -164,12 +170,12 @@ class _Room:
         half = np.arcsin(np.clip(self.radius / np.maximum(distance, 1e-9), 0.0, 1.0))
         spans = np.maximum(np.ceil(half / (2.0 * math.pi / BEARING_BINS)).astype(int), 1)
         bins = _bearing_bins(np.arctan2(rel[:, 1], rel[:, 0]))
-        seen = np.zeros(len(centres), bool)
-        for span in np.unique(spans):
-            nearest = ndimage.minimum_filter1d(self.nearest, 2 * span + 1, mode='wrap')
-            mine = spans == span
-            seen[mine] = nearest[bins[mine]] > distance[mine]
-        return clear & seen
+        length = np.minimum(2 * spans + 1, BEARING_BINS)     # bins the disc covers
+        level = np.floor(np.log2(length)).astype(int)
+        first = (bins - spans) % BEARING_BINS
+        last = (first + length - 2 ** level) % BEARING_BINS
+        nearest = np.minimum(self.run_minima[level, first], self.run_minima[level, last])
+        return clear & (nearest > distance)
 
 
 def _bearing_bins(bearings):
