@@ -352,6 +352,20 @@ def test_crossing_moving_obstacle_is_avoided_with_prediction():
     assert_limits(run, p)
 
 
+@pytest.mark.parametrize('name', ['fusion', 'apf', 'dwa', 'astar-track'])
+def test_the_display_rollout_off_leaves_every_command_as_it_was(name):
+    shown = simulate(make_controller(name, params()), (0.0, 0.0, 0.0), [10.0, 0.0],
+                     points=circle([5.0, 0.4], 0.5), movers=[CROSSER], duration=30.0)
+    hidden = make_controller(name, params())
+    hidden.display_plan = False
+    unshown = simulate(hidden, (0.0, 0.0, 0.0), [10.0, 0.0], points=circle([5.0, 0.4], 0.5),
+                       movers=[CROSSER], duration=30.0)
+    assert all(c.local_plan is not None and len(c.local_plan) for c in shown.commands)
+    assert all(c.local_plan is None for c in unshown.commands)
+    assert [(c.v, c.omega, c.status) for c in shown.commands] == \
+        [(c.v, c.omega, c.status) for c in unshown.commands]
+
+
 def test_a_person_walking_at_the_robot_is_avoided():
     p = params()
     head_on = Mover(start=(8.0, 0.1), velocity=(-0.4, 0.0), radius=0.3)

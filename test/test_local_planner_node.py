@@ -421,6 +421,17 @@ def test_run_time_parameter_changes_accepted_or_refused_with_a_reason(robot):
     assert 5 <= n <= 15
 
 
+def test_the_local_plan_is_computed_and_published_only_while_someone_listens(robot):
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0), 'never moved'
+    assert robot.planner._controller.display_plan is False
+    plans = []
+    robot.node.create_subscription(Path, 'local_plan', plans.append, 10)
+    assert robot.wait_until(lambda: len(plans) >= 3, 5.0), 'no local_plan with a subscriber'
+    assert robot.planner._controller.display_plan is True
+    assert all(len(msg.poses) >= 2 and msg.header.frame_id == 'map' for msg in plans[-3:])
+
+
 def test_diagnostics_report_status_and_step_timing(robot):
     assert robot.wait_until(
         lambda: any(st.get('status') == 'no_path' for st in robot.statuses), 5.0)

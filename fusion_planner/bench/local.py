@@ -24,7 +24,9 @@ Notes
   ROS 2 (the ``ros`` extra or a sourced install) is checked before the run.
 - Timed with the CPU clock of this process (``time.process_time``): the
   *step* is the tracker query, the ``Observation`` and ``compute``, what the
-  node's control timer runs besides publishing; *scan* and *track* are the
+  node's control timer runs besides publishing, with the controller's
+  display rollout off as in a node whose ``local_plan`` has no subscriber
+  (``--display-plan``: on); *scan* and *track* are the
   conversions of one scan and one marker message. The load is their CPU
   time over the simulated time, i.e. the fraction of one core the local
   planner needs at :data:`CONTROL_RATE_HZ` with scans at
@@ -162,7 +164,7 @@ def key_nodes(path, plan, use_ros):
     return plan.key_nodes
 
 
-def run_episode_timed(scenario, steps, use_ros):
+def run_episode_timed(scenario, steps, use_ros, display_plan=False):
     """Drive one scenario in closed loop, timing each control step.
 
     Parameters
@@ -172,6 +174,9 @@ def run_episode_timed(scenario, steps, use_ros):
         Most control steps to time.
     use_ros : bool
         See :class:`NodeInputs`.
+    display_plan : bool
+        The controller's ``display_plan`` (the node's: whether ``local_plan``
+        has a subscriber).
 
     Returns
     -------
@@ -192,6 +197,7 @@ def run_episode_timed(scenario, steps, use_ros):
     params = scenario.follower_params()
     controller = follow.make_controller(
         'fusion', params, replan=follow.GridReplanner(scenario.grid, scenario.planner))
+    controller.display_plan = display_plan
     plan = plan_on_known_map(scenario)
     start, goal = np.asarray(scenario.start, float), np.asarray(scenario.goal, float)
     path, _ = exact_ends(plan.path, plan.key_nodes, start[:2], goal)
@@ -219,8 +225,10 @@ def run_episode_timed(scenario, steps, use_ros):
     return step_s, inputs, world.time, status
 
 
-def measure_steps(steps, seed, use_ros):
+def measure_steps(steps, seed, use_ros, display_plan=False):
     """Time ``steps`` control steps over episodes of consecutive seeds.
+
+    ``display_plan``: see :func:`run_episode_timed`.
 
     Returns
     -------
@@ -239,7 +247,7 @@ def measure_steps(steps, seed, use_ros):
         try:
             scenario = bench_scenario(episode_seed)
             timed, inputs, driven, status = run_episode_timed(
-                scenario, steps - len(step_s), use_ros)
+                scenario, steps - len(step_s), use_ros, display_plan)
         except PlanningError as err:
             episodes.append({'seed': episode_seed, 'steps': 0, 'status': f'skipped: {err}'})
             continue
@@ -258,7 +266,7 @@ def measure_steps(steps, seed, use_ros):
                     'mean': float(ms.mean())},
         'scan_ms': 1e3 * statistics.median(scan_s) if scan_s else None,
         'track_ms': 1e3 * statistics.median(track_s) if track_s else None,
-        'load': load, 'ros_inputs': use_ros,
+        'load': load, 'ros_inputs': use_ros, 'display_plan': display_plan,
         'scene': {'beams': BEAMS, 'moving_obstacles': MOVING_OBSTACLES, 'size_m': SIZE_M,
                   'control_rate_hz': CONTROL_RATE_HZ, 'scan_rate_hz': SCAN_RATE_HZ}}
 
@@ -352,7 +360,8 @@ def format_report(steps, demo, verdicts, notes):
         s = steps['step_ms']
         lines += ['', f'control step of the fusion controller: {steps["steps"]} steps, '
                       f'{steps["sim_time_s"]:.1f} s simulated at {CONTROL_RATE_HZ:g} Hz, '
-                      f'{BEAMS} beams at {SCAN_RATE_HZ:g} Hz, {MOVING_OBSTACLES} tracked obstacles',
+                      f'{BEAMS} beams at {SCAN_RATE_HZ:g} Hz, {MOVING_OBSTACLES} tracked obstacles, '
+                      f'display rollout {"on" if steps["display_plan"] else "off"}',
                   f'{"CPU [ms]":<26}{"median":>9}{"p90":>9}{"p99":>9}{"max":>9}{"mean":>9}',
                   f'{"step (obs + compute)":<26}{s["median"]:>9.3f}{s["p90"]:>9.3f}'
                   f'{s["p99"]:>9.3f}{s["max"]:>9.3f}{s["mean"]:>9.3f}']
@@ -388,6 +397,9 @@ def add_arguments(parser):
     parser.add_argument('--no-ros', action='store_true',
                         help='feed the controller the world\'s points and ideal tracks instead '
                              'of converted ROS messages')
+    parser.add_argument('--display-plan', action='store_true',
+                        help='time the step with the display rollout (local_plan) on, as in a '
+                             'node whose local_plan has a subscriber')
     parser.add_argument('--quick', action='store_true',
                         help=f'{QUICK_STEPS} steps and no demo: checks that it all runs')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
@@ -419,7 +431,8 @@ def run(args):
     notes = []
     if args.no_ros:
         notes.append('inputs from the world, not from ROS messages: asked (--no-ros)')
-    steps = measure_steps(steps_wanted, args.seed, use_ros=not args.no_ros)
+    steps = measure_steps(steps_wanted, args.seed, use_ros=not args.no_ros,
+                          display_plan=args.display_plan)
     demo = measure_demo(args.demo_factor) if run_demo else None
     verdicts = evaluate_targets(steps, demo)
     if args.json:

@@ -64,7 +64,7 @@ Topics (relative names, so a namespace or a remap applies):
   nothing, so it does not fight a teleop or keep a twist_mux input alive;
   ``publish_zero_when_idle`` keeps a zero command at ``control_rate``.
 - ``local_plan`` (nav_msgs/Path, ``frame_id``) out: the controller's
-  short field rollout.
+  short field rollout, computed only while the topic has a subscriber.
 - ``controller_outcome`` (diagnostic_msgs/DiagnosticStatus) out, once per
   plan whose run ended: ``reached``, ``no_path`` (replanning proved the goal
   unreachable) or ``controller_failed``, with the plan's stamp
@@ -812,6 +812,7 @@ class LocalPlannerNode(ManagedNode):
                 pose=pose, velocity=velocity, obstacle_points=points,
                 tracked=self._in_plan_frame(tracked), time=now,
                 tentative=self._in_plan_frame(tentative))
+            self._controller.display_plan = self._local_plan_pub.get_subscription_count() > 0
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
             # measured velocity, which an odometry glitch can put beyond them.
@@ -822,8 +823,7 @@ class LocalPlannerNode(ManagedNode):
             elif scan_stale:
                 v = min(v, params.stale_scan_speed)
             self._publish_command(v, omega, idle=command.status in STOPPED_STATUSES)
-            if command.local_plan is not None and len(command.local_plan) \
-                    and self._local_plan_pub.get_subscription_count() > 0:
+            if command.local_plan is not None and len(command.local_plan):
                 self._local_plan_pub.publish(conv.path_to_msg(
                     frames.transform_points(self._plan_correction, command.local_plan),
                     self._frame_id, self._stamp()))

@@ -272,7 +272,8 @@ class Command:
     sub_goal : ndarray, float64, shape (2,) or None
         Current sub-goal [m], map frame.
     local_plan : ndarray, float64, shape (L, 2) or None
-        Short rollout of the steering field from the robot [m], for display.
+        Short rollout of the steering field from the robot [m], for display;
+        None from a controller whose ``display_plan`` is off.
     """
 
     v: float
@@ -288,6 +289,7 @@ class Controller(Protocol):
 
     stuck_events: int
     no_path_proven_at: float
+    display_plan: bool
 
     def set_path(self, path: np.ndarray, key_nodes: np.ndarray) -> None:
         """Take a global plan ``(N, 2)`` [m] and its key nodes ``(K, 2)`` [m]."""
@@ -381,6 +383,12 @@ class ControllerBase:
     no_path_proven_at : float or None
         Observation time [s] at which a replan proved the goal unreachable,
         None until then (and after a reset).
+    display_plan : bool
+        Whether commands carry a :attr:`Command.local_plan` (default True).
+        Nothing the controller does depends on it; the field followers'
+        display rollout is about a quarter of their step, so a user with
+        nobody to show it to turns it off (the local_planner node while
+        ``local_plan`` has no subscriber, the simulation always).
 
     Raises
     ------
@@ -394,6 +402,7 @@ class ControllerBase:
         self.params = params
         self.stuck_events = 0
         self.no_path_proven_at = None
+        self.display_plan = True
         self._path = None
         self._key_nodes = None
         self._failure = None
@@ -485,7 +494,7 @@ class ControllerBase:
         """Brake toward (0, 0) within the acceleration limits."""
         v, w = self._limit(0.0, 0.0, obs)
         return Command(v=v, omega=w, status=status, reason=reason, sub_goal=sub_goal,
-                       local_plan=obs.pose[None, :2].copy())
+                       local_plan=obs.pose[None, :2].copy() if self.display_plan else None)
 
     def _fail(self, obs, reason, sub_goal=None):
         """Latch the failure ``reason`` (until a new path or a reset) and brake."""

@@ -152,7 +152,7 @@ class DynamicWindow(PathTracker):
         if not np.any(admissible):
             v_brake, w_brake = self._limit(0.0, 0.0, obs)
             return Command(v_brake, w_brake, 'moving', sub_goal=goal.copy(),
-                           local_plan=q[None, :].copy())
+                           local_plan=q[None, :].copy() if self.display_plan else None)
         # Fox's heading is taken where the robot would stop: after one period at
         # (v, omega), then braking (as far as holding the speed v / (2 a) longer)
         stops = rollout(obs.pose, v, window[:, 1],
@@ -162,7 +162,8 @@ class DynamicWindow(PathTracker):
         score = self._score(window, stops, carrot, np.minimum(free, length) / length)
         best = int(np.argmax(np.where(admissible, score, -np.inf)))
         v_best, w_best = self._limit(float(v[best]), float(window[best, 1]), obs)
-        plan = np.vstack([q, poses[best, PLAN_STRIDE - 1::PLAN_STRIDE, :2]])
+        plan = np.vstack([q, poses[best, PLAN_STRIDE - 1::PLAN_STRIDE, :2]]) \
+            if self.display_plan else None
         return Command(v_best, w_best, 'moving', sub_goal=carrot.copy(), local_plan=plan)
 
     # -- the steps -------------------------------------------------------------------

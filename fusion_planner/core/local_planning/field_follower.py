@@ -669,6 +669,7 @@ class FieldFollower(ControllerBase):
         if self._unreachable is not None:
             return self._stop_unreachable(obs)
         target = self._key_nodes[self._index]  # an escape step or a replan may have changed it
+        plan = None
         if self._follow is None:
             yaw = obs.pose[2]
             robot_velocity = obs.velocity[0] * np.array([math.cos(yaw), math.sin(yaw)])
@@ -678,11 +679,11 @@ class FieldFollower(ControllerBase):
                 force = force / max(math.hypot(force[0], force[1]), FORCE_EPS) + scene.graze
             norm = math.hypot(force[0], force[1])
             direction = force / norm if norm > FORCE_EPS else None
-            plan = self._rollout(q, target, scene, direction)
-        elif direction is not None:
-            plan = np.vstack([q, q + p.apf.l0 * direction])
-        else:
-            plan = q[None, :].copy()
+            if self.display_plan:
+                plan = self._rollout(q, target, scene, direction)
+        elif self.display_plan:
+            plan = q[None, :].copy() if direction is None \
+                else np.vstack([q, q + p.apf.l0 * direction])
         status = 'stuck_escaping' if self._episode is not None else 'moving'
         if direction is None:  # an exact minimum: stop; the stuck detector takes over
             v, w = self._evade(obs, scene, (0.0, 0.0), target - q)

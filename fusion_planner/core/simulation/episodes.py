@@ -324,6 +324,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
     controller = follow.make_controller(
         controller_name, params,
         replan=follow.GridReplanner(scenario.grid, scenario.planner, robot_radius=scenario.robot.radius))
+    controller.display_plan = False  # nothing here shows it
     seed = scenario.seed if seed is None else int(seed)
     start = np.asarray(scenario.start, float)
     goal = np.asarray(scenario.goal, float)
