@@ -209,6 +209,8 @@ def test_bad_parameters_are_refused():
         TrackerParams(size_ratio=1.0)
     with pytest.raises(InvalidInput, match='stop_time'):
         TrackerParams(stop_time=-0.1)
+    with pytest.raises(InvalidInput, match='split_depth'):
+        TrackerParams(split_depth=0.0)
 
 
 def test_a_slow_walker_is_a_tentative_mover_before_it_has_travelled_far_enough():

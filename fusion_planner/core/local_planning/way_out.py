@@ -124,16 +124,17 @@ def cornered(q, ends, time, tracked, points, params):
     """
     result = np.zeros(len(ends), bool)
     walking = tracked[np.hypot(tracked[:, 2], tracked[:, 3]) >= MIN_WALKING_SPEED]
-    in_way = [_Band(mover, time, params).holds(ends) for mover in walking]
+    bands = [_Band(mover, time, params) for mover in walking]
+    in_way = [band.holds(ends) for band in bands]
     if not np.any(in_way):
         return result
     static = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
     if len(static) == 0:
         return result  # open ground: a way out everywhere
     room = _Room(q, points, static, params.robot_radius)
-    for mover, mask in zip(walking, in_way):
+    for band, mask in zip(bands, in_way):
         if np.any(mask):
-            result[mask] |= _cornered_by(ends[mask], _Band(mover, time, params), room, params)
+            result[mask] |= _cornered_by(ends[mask], band, room, params)
     return result
 
 
