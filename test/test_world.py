@@ -314,6 +314,29 @@ def test_bounce_stays_in_the_map_and_reflects_off_walls():
     assert xs[:, 0].max() > 9.0 and xs[:, 0].min() < 1.0  # it crossed the room both ways
 
 
+def test_people_walking_at_each_other_do_not_walk_through_each_other():
+    """Random walkers and bouncing people reflect off one another (two overlapping discs
+    would be one object to a laser); a waypoint walker keeps to its schedule regardless."""
+    crowd = [MovingObstacle(0.25, RandomWalkMotion((x, 4.0), 0.6, 1.0)) for x in (3.0, 5.0, 7.0)]
+    crowd += [MovingObstacle(0.3, BounceMotion((5.0, 2.0), (0.0, 0.6))),
+              MovingObstacle(0.25, WaypointMotion(((1.0, 3.0), (9.0, 3.0)), 0.5))]
+    world = make_world(pose=(0.5, 0.5, 0.0), moving=crowd, seed=3)
+    radii = np.array([m.radius for m in crowd])
+    closest = np.inf
+    for i in range(600):
+        world.step(0.0, 0.0, 0.1)
+        centres = world.obstacle_positions()
+        gaps = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1)) \
+            - radii[:, None] - radii[None]
+        free = gaps[:4, :4][np.triu_indices(4, 1)]
+        closest = min(closest, free.min())
+        assert free.min() > -1e-9, f'step {i}: {free.min()}'
+        t = world.time % 32.0                            # the waypoint loop: 16 m at 0.5 m/s
+        expected = (1.0 + 0.5 * t, 3.0) if t <= 16.0 else (9.0 - 0.5 * (t - 16.0), 3.0)
+        assert np.allclose(centres[4], expected, atol=1e-6)
+    assert closest < 0.1                                 # they did meet
+
+
 def test_waypoint_loop_is_periodic_and_on_the_polyline():
     pts = ((1.0, 1.0), (5.0, 1.0), (5.0, 4.0))
     mover = MovingObstacle(0.2, WaypointMotion(pts, 0.5))

@@ -37,7 +37,12 @@ Conventions
   Every other contact event is *avoidable*: a robot driving across a
   person's way is in motion, not retreating.
 - Moving obstacles bounce off the static world (axis-separated reflection of
-  their velocity) and pass through one another.
+  their velocity). A bouncing or random-walking one also bounces off the
+  other moving obstacles (its velocity reflected about the line of
+  centres when its next step would overlap one it approaches): people do
+  not walk through each other, and two overlapping discs would be one
+  object to a laser. A waypoint walker keeps to its schedule and may
+  still overlap another.
 - Determinism: all randomness (random walks, scan noise) comes from
   :class:`numpy.random.Generator` streams derived from one seed, so the same
   seed and the same commands give the same run. Motion and noise use
@@ -1004,9 +1009,24 @@ class World:
         if isinstance(motion, RandomWalkMotion):
             mover.heading += motion.turn_std * math.sqrt(dt) * float(self._motion_rng.normal())
             mover.velocity = motion.speed * np.array([math.cos(mover.heading), math.sin(mover.heading)])
+        self._give_way(mover, dt)
         self._bounce(mover, dt)
         if isinstance(motion, RandomWalkMotion):
             mover.heading = math.atan2(mover.velocity[1], mover.velocity[0])
+
+    def _give_way(self, mover, dt):
+        """Reflect ``mover``'s velocity off each other mover its next step would overlap."""
+        for other in self._movers:
+            if other is mover:
+                continue
+            away = mover.position - other.position
+            distance = math.hypot(away[0], away[1])
+            reach = mover.spec.radius + other.spec.radius
+            ahead = mover.position + mover.velocity * dt - other.position
+            approaching = float(mover.velocity @ away) < 0.0
+            if distance > 0.0 and approaching and math.hypot(ahead[0], ahead[1]) < reach:
+                normal = away / distance
+                mover.velocity = mover.velocity - 2.0 * float(mover.velocity @ normal) * normal
 
     def _bounce(self, mover, dt):
         """Move at constant velocity; reflect the velocity components that would hit."""
