@@ -532,6 +532,19 @@ def test_the_robot_does_not_run_ahead_of_a_person_into_a_dead_end():
     assert np.min(gaps) < 1.0                                    # they did meet
 
 
+def test_a_robot_pushed_off_its_route_beside_a_wall_end_gets_back_on_it_first():
+    """Pushed 0.9 m off its route, beside a thin wall whose end the route goes round: every
+    line to a carrot past the end grazes the wall, so the robot drives back onto the route
+    (random-2170436660 of bench families --seed 611611 crept at the wall for 30 s)."""
+    thin = np.vstack([wall((8.0, 0.0), (8.0, 3.0)), wall((8.1, 0.0), (8.1, 3.0)),
+                      wall((8.0, 3.0), (8.1, 3.0))])
+    route = np.array([[7.79, 3.21], [8.29, 3.26], [8.69, 3.25], [8.72, 2.6], [9.25, 0.65]])
+    run = simulate(make_controller('fusion', params()), (7.75, 2.3, math.pi / 2), route[-1],
+                   thin, path=route, duration=30.0, block=True)
+    assert reached(run) and run.blocked_steps == 0
+    assert len(run.poses) * DT < 12.0          # 19.4 s when it headed past the wall's end
+
+
 # -- replanning ------------------------------------------------------------
 
 def test_fusion_asks_for_a_new_plan_when_the_path_is_blocked():

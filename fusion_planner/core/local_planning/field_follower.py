@@ -718,7 +718,10 @@ class FieldFollower(ControllerBase):
         carrot would graze a point beside the route (cutting a corner the
         route goes round), the lookahead is halved, down to
         :data:`MIN_LOOKAHEAD`; the line need not keep more clearance than
-        the robot has now. People on the route ahead narrow the band to the
+        the robot has now. A robot more than its radius off the route (pushed
+        aside by people) whose every such line grazes a point heads for its
+        station first, when the line to that is free: round a wall's end,
+        the route ahead is reached by going back onto it. People on the route ahead narrow the band to the
         side of them the robot keeps to
         (:mod:`~fusion_planner.core.local_planning.yielding`); while it keeps
         to a side, the tracked obstacles do not repel either.
@@ -781,9 +784,13 @@ class FieldFollower(ControllerBase):
                                                               half_width)[0]:
             halvings = int(math.ceil(math.log2(p.lookahead / MIN_LOOKAHEAD)))
             shorter = np.maximum(p.lookahead * 0.5**np.arange(1, halvings + 1), MIN_LOOKAHEAD)
-            carrots = self._centred_carrots(offsets, side_index, shorter, people)
-            clear = np.append(segments_clear(q, carrots[:-1], side, half_width), True)
-            carrot = carrots[int(np.argmax(clear))]
+            carrots = self._centred_carrots(offsets, side_index, np.append(shorter, 0.0),
+                                            people)
+            clear = segments_clear(q, carrots, side, half_width)
+            carrot = carrots[int(np.argmax(clear[:-1]))] if np.any(clear[:-1]) else carrots[-2]
+            if not np.any(clear[:-1]) and clear[-1] \
+                    and math.hypot(*(carrots[-1] - q)) > p.robot_radius:
+                carrot = carrots[-1]  # off the route, the way ahead hidden by a corner: back on first
         scene.carrot = carrot
 
     def _route_fits(self, offsets, index):
