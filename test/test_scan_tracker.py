@@ -258,6 +258,28 @@ def test_a_walker_turning_round_stays_reported():
     assert reports[-1].states[0, 3] < -0.2
 
 
+def test_a_walker_stepping_out_from_behind_a_corner_stays_reported():
+    # a block (x < 7.1 m, 3.4 m < y < 3.7 m) hides a person walking east along
+    # its top face from a laser driving north past its end; while the person
+    # comes out, the map explains its lower returns and the corner hides its
+    # back, so its centre estimate stands still or slips back and its speed
+    # estimate dips through zero before the visible part moves on
+    grid = open_map(pillar=(slice(34, 37), slice(0, 71)))
+    tracker = ScanTracker(grid)
+    reported = []
+    for k in range(20):
+        t = k * DT
+        origin = np.array([7.5, 2.8 + 0.8 * t, 0.0])
+        ranges = scan_of(grid, origin, [(6.45 + 0.31 * t, 4.07)], radius=0.28)
+        tracker.update(ANGLES, ranges, origin, t)
+        report = tracker.report()
+        reported.append(np.vstack([report.tracked, report.tentative]))
+    first = next(k for k, rows in enumerate(reported) if len(rows))
+    assert first * DT < 1.2
+    assert all(len(rows) == 1 for rows in reported[first:]), [len(r) for r in reported]
+    assert reported[-1][0, 2] > 0.2
+
+
 def test_walkers_who_part_do_not_swing_a_track_the_wrong_way():
     grid = open_map()
     origin = np.array([3.0, 10.0, 0.0])

@@ -48,7 +48,12 @@ controller avoids (:attr:`Observation.tracked`):
    behind a corner has a usable velocity estimate long before it has
    travelled ``min_travel``, while a static object's estimate may wander
    for a second as the view changes. A controller checks its commands
-   against them without treating them as people.
+   against them without treating them as people. Like a moving track, a
+   tentative mover stays one until its speed has been below half of
+   ``min_speed`` for ``stop_time``: a person coming out from behind a
+   corner at first shows only its front, whose centre estimate stands
+   still, or slips back, while more of it comes into view, and its speed
+   estimate passes through zero.
 
 Deterministic: the same scans give the same tracks (no randomness; ties in
 the assignment are broken by index). Vectorised over beams, candidates and
@@ -287,6 +292,7 @@ class ScanTracker:
         self._birth = np.zeros((0, 2))     # where each track must travel min_travel from [m]
         self._origin = np.zeros((0, 2))    # where each track first appeared [m]
         self._moving = np.zeros(0, bool)
+        self._tentative = np.zeros(0, bool)  # a tentative mover (module notes, step 6)
         self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
         self._stays = np.zeros(0, bool)    # its returns stayed in old cells at its last match
         self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
@@ -365,15 +371,13 @@ class ScanTracker:
         -------
         TrackReport
         """
-        p = self.params
         keep = self._moving
         ahead = 0.0
         if time is not None and self.time is not None and math.isfinite(time):
             ahead = time - self.time
         states = self._x.copy()
         states[:, 0:2] += states[:, 2:4] * ahead
-        tentative = (~keep & ~self._stays & (self._hits >= p.confirm_hits)
-                     & (np.hypot(states[:, 2], states[:, 3]) >= p.min_speed))
+        tentative = self._tentative & ~self._stays
         return TrackReport(ids=self._ids[keep].copy(), states=states[keep],
                            covariances=self._p[keep].copy(), radii=self._radius[keep].copy(),
                            tentative=np.column_stack([states[tentative],
@@ -484,6 +488,7 @@ class ScanTracker:
         self._birth = np.concatenate([self._birth, centers])
         self._origin = np.concatenate([self._origin, centers])
         self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
+        self._tentative = np.concatenate([self._tentative, np.zeros(n, bool)])
         self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
         self._stays = np.concatenate([self._stays, np.zeros(n, bool)])
         self._staying_since = np.concatenate([self._staying_since, np.full(n, np.inf)])
@@ -496,17 +501,20 @@ class ScanTracker:
                   & (speed >= p.min_speed))
         slow = speed < 0.5 * p.min_speed
         self._slow_since = np.where(slow, np.minimum(self._slow_since, self.time), np.inf)
-        stops = self._moving & slow & (self.time - self._slow_since >= p.stop_time)
+        settled = slow & (self.time - self._slow_since >= p.stop_time)
+        stops = self._moving & settled
         # a stopped track must travel again from where it stopped
         self._birth[stops] = self._x[stops, 0:2]
         self._moving = (self._moving & ~stops) | starts
+        self._tentative = ((self._hits >= p.confirm_hits) & ~self._moving
+                           & ((speed >= p.min_speed) | (self._tentative & ~settled)))
 
     def _keep(self, mask):
         self._ids, self._x, self._p = self._ids[mask], self._x[mask], self._p[mask]
         self._radius, self._hits = self._radius[mask], self._hits[mask]
         self._last_seen, self._birth = self._last_seen[mask], self._birth[mask]
         self._origin = self._origin[mask]
-        self._moving = self._moving[mask]
+        self._moving, self._tentative = self._moving[mask], self._tentative[mask]
         self._slow_since = self._slow_since[mask]
         self._stays = self._stays[mask]
         self._staying_since = self._staying_since[mask]
