@@ -707,10 +707,11 @@ class FieldFollower(ControllerBase):
         A static point within :data:`BLOCKING_FRACTION` of the robot radius
         of the route ahead blocks it and repels as in the paper (within the
         whole radius where the points on either side leave the robot no room
-        to pass: the route is closed there, see :meth:`_route_fits`); the others
-        lie beside the route and repel nothing (a passage's walls would hold
-        the robot back at its entrance, and their steep, opposed pushes make
-        it weave inside); one within :data:`NEAR_GAP` of the robot is grazed. They bound the free band about the route from the
+        to pass: the route is closed there, see :meth:`_route_fits`); the
+        others lie beside the route and repel nothing (a passage's walls
+        would hold the robot back at its entrance, and their steep, opposed
+        pushes make it weave inside); one within :data:`NEAR_GAP` of the
+        robot is grazed. They bound the free band about the route from the
         robot's station to the carrot, the route point ``lookahead`` ahead;
         the carrot is shifted across the route to keep
         :data:`KEEP_CLEARANCE` from them where the band is wide enough, to
@@ -718,13 +719,13 @@ class FieldFollower(ControllerBase):
         carrot would graze a point beside the route (cutting a corner the
         route goes round), the lookahead is halved, down to
         :data:`MIN_LOOKAHEAD`; the line need not keep more clearance than
-        the robot has now. A robot more than its radius off the route (pushed
-        aside by people) whose every such line grazes a point heads for its
-        station first, when the line to that is free: round a wall's end,
-        the route ahead is reached by going back onto it. People on the route ahead narrow the band to the
-        side of them the robot keeps to
-        (:mod:`~fusion_planner.core.local_planning.yielding`); while it keeps
-        to a side, the tracked obstacles do not repel either.
+        the robot has now. A robot more than its radius off the route
+        (pushed aside by people) whose every such line grazes a point heads
+        for its station first, when the line to that is free: round a
+        wall's end, the route ahead is reached by going back onto it.
+        People on the route ahead narrow the band to the side of them the
+        robot keeps to (:mod:`~fusion_planner.core.local_planning.yielding`);
+        while it keeps to a side, the tracked obstacles do not repel either.
         """
         p = self.params
         route = self._route
