@@ -788,10 +788,12 @@ class FieldFollower(ControllerBase):
             carrots = self._centred_carrots(offsets, side_index, np.append(shorter, 0.0),
                                             people)
             clear = segments_clear(q, carrots, side, half_width)
-            carrot = carrots[int(np.argmax(clear[:-1]))] if np.any(clear[:-1]) else carrots[-2]
-            if not np.any(clear[:-1]) and clear[-1] \
-                    and math.hypot(*(carrots[-1] - q)) > p.robot_radius:
+            if np.any(clear[:-1]):
+                carrot = carrots[int(np.argmax(clear[:-1]))]
+            elif clear[-1] and math.hypot(*(carrots[-1] - q)) > p.robot_radius:
                 carrot = carrots[-1]  # off the route, the way ahead hidden by a corner: back on first
+            else:
+                carrot = carrots[-2]
         scene.carrot = carrot
 
     def _route_fits(self, offsets, index):
