@@ -798,3 +798,29 @@ def test_the_evader_keeps_a_forward_choice_that_is_still_as_good_as_the_best():
     evader.forget()
     assert evader.evade(pose, still, (0.0, 0.0), np.array([1.0, 0.0]), walker,
                         np.zeros((0, 2)), p) == fresh
+
+
+def test_a_robot_backing_away_waits_again_only_with_a_wider_margin():
+    """A person's predicted path wobbles by centimetres: backing off one period and
+    waiting the next, a robot beside a wall neither waits nor gets away."""
+    p = params()
+    pose, still, desired = np.zeros(3), np.zeros(2), np.array([1.0, 0.0])
+    wall = np.column_stack([np.linspace(-3.0, 3.0, 121), np.full(121, -0.22)])
+
+    def walker_passing_at(gap):
+        """A person walking at the robot, their line ``gap`` [m] clear of it."""
+        return np.array([[0.7, p.robot_radius + 0.25 + gap, -0.3, 0.0, 0.25]])
+
+    between = walker_passing_at(0.5 * (evasion.YIELD_MARGIN + evasion.BACKING_YIELD_MARGIN))
+    v, _, evading = evasion.evade(pose, still, (0.0, 0.0), desired, between, wall, p)
+    assert evading and v == 0.0                                    # it waits beside the wall
+    evader = evasion.Evader()
+    evader.backing = True
+    v, _, evading = evader.evade(pose, still, (0.0, 0.0), desired, between, wall, p)
+    assert evading and v < 0.0 and evader.backing                  # ... unless it was backing
+    wider = walker_passing_at(evasion.BACKING_YIELD_MARGIN + 0.01)
+    v, _, evading = evader.evade(pose, still, (0.0, 0.0), desired, wider, wall, p)
+    assert evading and v >= 0.0 and not evader.backing             # waits or goes on
+    evader.backing = True
+    evader.forget()
+    assert not evader.backing

@@ -49,7 +49,8 @@ Evasion
     that is still allowed, as late in contact as the best and within
     :data:`KEEP_INTRUSION` of its intrusion: the rollouts assume the
     choice held, and a robot that switches every period between pivots
-    and arcs, or between backing away and driving on, goes nowhere. It
+    and arcs, or between backing away and driving on, goes nowhere; once
+    backing away, it waits again only with :data:`BACKING_YIELD_MARGIN`. It
     is the only place a controller reverses: backing away is sometimes the
     only way out of a person's path, but not into a corner, and not when
     waiting beside them will do.
@@ -124,6 +125,12 @@ YIELD_MARGIN = 0.02
 #: prediction's uncertainty is not ignored, only not extrapolated so far that
 #: backing away always looks safer.
 YIELD_SAFE_TIME = 1.0
+
+#: The same clearance [m] for a robot that is backing away: a person's
+#: predicted path wobbles by centimetres from one scan to the next, and a
+#: robot that switches every period between backing away and waiting beside
+#: them neither waits nor gets away.
+BACKING_YIELD_MARGIN = 0.07
 
 #: Fastest reverse speed of an evasion, as a fraction of ``max_speed``.
 REVERSE_FRACTION = 0.5
@@ -396,21 +403,27 @@ class Evader:
         The forward evasive choice of the last call, ``('arc', v, omega)``
         or ``('pivot', heading, speed)`` [m/s, rad/s, rad]; None when the
         last call did not evade, backed away, or there was none.
+    backing : bool
+        The last call backed away: waiting or going on needs
+        :data:`BACKING_YIELD_MARGIN` again, not :data:`YIELD_MARGIN`.
     """
 
     def __init__(self):
         self.kept = None
+        self.backing = False
 
     def forget(self):
         """Drop the kept choice (the evasion did not run this period)."""
         self.kept = None
+        self.backing = False
 
     def evade(self, pose, velocity, command, desired, tracked, points, params):
         """:func:`evade`, keeping the last forward choice while it is as good as the best."""
         v, omega, evading, chosen = _evade(pose, velocity, command, desired, tracked, points,
-                                           params, self.kept)
+                                           params, self.kept, self.backing)
         forward = chosen is not None and (chosen[0] == 'pivot' or chosen[1] >= 0.0)
         self.kept = chosen if evading and forward else None
+        self.backing = evading and not forward
         return v, omega, evading
 
 
@@ -466,8 +479,11 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     return _evade(pose, velocity, command, desired, tracked, points, params, None)[:3]
 
 
-def _evade(pose, velocity, command, desired, tracked, points, params, kept):
-    """:func:`evade` with a kept choice (see :class:`Evader`); also returns the choice made."""
+def _evade(pose, velocity, command, desired, tracked, points, params, kept, backing=False):
+    """:func:`evade` with a kept choice and the last call's backing (see :class:`Evader`).
+
+    Also returns the choice made.
+    """
     q = pose[:2]
     tracked = _relevant(q, tracked, params)
     if len(tracked) == 0:
@@ -503,9 +519,9 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept):
         return command[0], command[1], False, None  # cornered, but nothing better is safe
     if with_way_out is not None:
         allowed = with_way_out
+    margin = BACKING_YIELD_MARGIN if backing else YIELD_MARGIN
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
-        & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= YIELD_MARGIN,
-                 axis=1)
+        & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= margin, axis=1)
     if np.any(yielding):
         allowed = yielding
         if np.any(yielding & (progress >= 0.0)):
