@@ -413,7 +413,7 @@ class Evader:
         self.backing = False
 
     def forget(self):
-        """Drop the kept choice (the evasion did not run this period)."""
+        """Drop the kept choice and the backing (the evasion did not run this period)."""
         self.kept = None
         self.backing = False
 
