@@ -18,13 +18,14 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import Twist  # noqa: E402
+from geometry_msgs.msg import Twist, TwistStamped  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Header  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from fusion_planner.cli import demo_command as demo  # noqa: E402
@@ -195,6 +196,13 @@ class LockstepProbe:
             return next((s for s in self.statuses if text in s.message
                          or any(text in kv.value for kv in s.values)), None)
 
+    def lockstep_after(self, heard):
+        """The ``lockstep`` value of the latest status after the first ``heard`` ones (or None)."""
+        with self.lock:
+            later = self.statuses[heard:]
+        values = [kv.value for s in later[-1:] for kv in s.values if kv.key == 'lockstep']
+        return values[0] if values else None
+
     def close(self):
         demo.shutdown_executor(self.spinner, [self.sim, self.node])
 
@@ -224,6 +232,30 @@ def test_a_lockstep_step_nobody_answers_is_reported_after_the_timeout_and_the_wo
         assert probe.clock_s == first_step
         assert probe.wait_until(lambda: probe.clock_s > first_step + 1.0)
         assert probe.status_with('within 0.3 s of wall time') is not None
+    finally:
+        probe.close()
+
+
+def test_after_a_timeout_any_stamped_answer_brings_the_lockstep_back(context):
+    probe = LockstepProbe(context, enable_stamped_cmd_vel=True, lockstep_timeout=1.0)
+    cmd_pub = probe.node.create_publisher(TwistStamped, 'cmd_vel', 10)
+    try:
+        assert probe.wait_until(lambda: probe.clock_s > 0.0)
+        first_step = probe.clock_s
+        assert probe.wait_until(lambda: probe.clock_s > first_step + 1.0)  # running free
+        heard = len(probe.statuses)
+        # The answer to the first step comes long after it: the world has moved
+        # on, and now waits for the answer to its current step.
+        cmd_pub.publish(TwistStamped(header=Header(stamp=conv.seconds_to_stamp(first_step))))
+        assert probe.wait_until(lambda: probe.lockstep_after(heard) == 'on')
+        held = probe.clock_s
+        time.sleep(0.3)  # within the timeout
+        assert probe.clock_s == held
+        cmd_pub.publish(TwistStamped(header=Header(stamp=conv.seconds_to_stamp(held))))
+        assert probe.wait_until(lambda: probe.clock_s > held)
+        stepped = probe.clock_s
+        time.sleep(0.3)
+        assert probe.clock_s == stepped  # one step per answer
     finally:
         probe.close()
 

@@ -92,6 +92,11 @@ SIMULATOR_STATUS_PERIOD_S = 0.25
 #: Wall time without the simulated clock advancing after which the run is
 #: abandoned [s].
 CLOCK_STALL_S = 30.0
+#: The simulator's ``lockstep_timeout`` in the demo [s]: a machine that
+#: stalls a node for seconds slows the run down instead of changing it (the
+#: world running free); below :data:`CLOCK_STALL_S`, so a node that never
+#: answers still ends in a report, not a hang.
+LOCKSTEP_TIMEOUT_S = 20.0
 #: Wall time allowed on top of ``time limit / real-time factor`` [s] (start-up,
 #: discovery, a slower machine).
 WALL_SLACK_S = 60.0
@@ -191,6 +196,7 @@ def node_parameters(scenario, scenario_path, real_time_factor):
         'simulator': {'scenario': str(scenario_path), 'rate': rate,
                       'real_time_factor': float(real_time_factor), 'publish_goal': True,
                       'lockstep': True, 'enable_stamped_cmd_vel': True, 'start_paused': True,
+                      'lockstep_timeout': LOCKSTEP_TIMEOUT_S,
                       'diagnostics_period': SIMULATOR_STATUS_PERIOD_S},
         'global_planner': {'lockstep': True,
                            'algorithm': planner.algorithm, 'neighbourhood': planner.neighbourhood,

@@ -27,8 +27,9 @@ clock, whatever ``use_sim_time`` says); it is an upper bound:
   soon as ``real_time_factor`` allows. A plain Twist cannot be matched to a
   step: it is an error on diagnostics and the log, and the world runs free
   (on the wall clock). A step not answered within ``lockstep_timeout`` of
-  wall time is reported and the world runs free until the controller answers
-  a step again, so nothing ever hangs;
+  wall time is reported and the world runs free until a stamped command
+  comes again (the answer to any step: the world then waits for the
+  current step's), so nothing ever hangs;
 - with ``start_paused`` the world stays at t = 0 (sensors and clock still
   published) until the first plan appears, so moving obstacles do not
   wander off before the robot can start and every run starts alike. The
@@ -514,9 +515,14 @@ class SimulatorNode(ManagedNode):
                 self._diagnostics.update(ERROR, UNSTAMPED_PROBLEM, lockstep='off')
             self._set_engaged(False)
             return
-        if conv.stamp_to_nanoseconds(msg.header.stamp) != self._step_stamp_ns():
-            return  # the answer to an earlier step (after a timeout): applied, not matched
-        self._step_answered = True
+        stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
+        if stamp_ns == self._step_stamp_ns():
+            self._step_answered = True
+        elif self._lockstep_engaged or stamp_ns > self._step_stamp_ns():
+            return  # not an answer to this step: applied, not matched
+        # Running free, any answer shows the controller is back. Waiting for
+        # one stamped with the current step would never end: the free world
+        # moves on faster than an answer can come back.
         if not self._lockstep_engaged:
             self._set_engaged(True)
             self._lockstep_problem = ''
