@@ -237,7 +237,7 @@ def test_a_lockstep_step_nobody_answers_is_reported_after_the_timeout_and_the_wo
 
 
 def test_after_a_timeout_any_stamped_answer_brings_the_lockstep_back(context):
-    probe = LockstepProbe(context, enable_stamped_cmd_vel=True, lockstep_timeout=1.0)
+    probe = LockstepProbe(context, enable_stamped_cmd_vel=True, lockstep_timeout=3.0)
     cmd_pub = probe.node.create_publisher(TwistStamped, 'cmd_vel', 10)
     try:
         assert probe.wait_until(lambda: probe.clock_s > 0.0)
