@@ -507,7 +507,12 @@ class SimulatorNode(ManagedNode):
                 self._step_when_due(params)
 
     def _note_step_answer(self, msg):
-        """Lockstep: whether ``msg`` answers the current step (its stamp is the step's)."""
+        """Lockstep: whether ``msg`` answers the current step (its stamp is the step's).
+
+        While the world runs free (after a timeout), an answer to an earlier
+        step engages the lockstep again: the world then waits for the
+        current step's answer.
+        """
         if not hasattr(msg, 'header'):
             if self._lockstep_problem != UNSTAMPED_PROBLEM:
                 self._lockstep_problem = UNSTAMPED_PROBLEM
@@ -515,10 +520,10 @@ class SimulatorNode(ManagedNode):
                 self._diagnostics.update(ERROR, UNSTAMPED_PROBLEM, lockstep='off')
             self._set_engaged(False)
             return
-        stamp_ns = conv.stamp_to_nanoseconds(msg.header.stamp)
-        if stamp_ns == self._step_stamp_ns():
+        stamp_ns, step_ns = conv.stamp_to_nanoseconds(msg.header.stamp), self._step_stamp_ns()
+        if stamp_ns == step_ns:
             self._step_answered = True
-        elif self._lockstep_engaged or stamp_ns > self._step_stamp_ns():
+        elif self._lockstep_engaged or stamp_ns > step_ns:
             return  # not an answer to this step: applied, not matched
         # Running free, any answer shows the controller is back. Waiting for
         # one stamped with the current step would never end: the free world
