@@ -143,14 +143,14 @@ def simulate(controller, start, goal, points=np.zeros((0, 2)), movers=(), path=N
 def assert_limits(run, p):
     """Every command within the speed, turn-rate and acceleration limits.
 
-    Only an evasion reverses, and no faster than REVERSE_FRACTION * max_speed.
+    Only an evasion reverses, and no faster than the reverse speed.
     """
     dv = p.max_accel * p.control_period
     dw = p.max_alpha * p.control_period
     for command, (v0, w0) in zip(run.commands, run.measured):
         assert isinstance(command, Command) and command.status in STATUSES
         assert math.isfinite(command.v) and math.isfinite(command.omega)
-        assert -evasion.REVERSE_FRACTION * p.max_speed - EPS <= command.v <= p.max_speed + EPS
+        assert -p.reverse_speed() - EPS <= command.v <= p.max_speed + EPS
         assert abs(command.omega) <= p.max_omega + EPS
         assert abs(command.v - v0) <= dv + EPS
         assert abs(command.omega - w0) <= dw + EPS
@@ -439,9 +439,36 @@ def test_evasion_leaves_a_slit_before_a_person_walking_at_the_robot():
     """No room beside the person: it backs away or turns round to drive away, never on."""
     v, omega, evading = evade_now((0.0, 0.0), [[1.2, 0.0, -0.35, 0.0, 0.3]], SLIT)
     assert evading
-    assert -evasion.REVERSE_FRACTION * params().max_speed - EPS <= v <= 0.0
+    assert -params().reverse_speed() - EPS <= v <= 0.0
     assert v < 0.0 or abs(omega) > 0.0
     assert abs(omega) <= params().max_omega + EPS
+
+
+#: A slit like SLIT, 15 m long: room to back away along it for seconds.
+LONG_SLIT = np.vstack([wall((-12.0, -0.45), (3.0, -0.45)), wall((-12.0, 0.45), (3.0, 0.45))])
+
+
+@pytest.mark.parametrize('reverse, clear', [(0.8, True), (0.4, False)])
+def test_a_robot_backing_away_from_a_person_gets_clear_only_when_faster(reverse, clear):
+    """In a slit, with no time to turn round, backing away is the only escape from a person.
+
+    The person walks at 0.5 m/s: a robot that reverses at its top speed
+    keeps clear; one that reverses at half of it (0.4 m/s) is caught.
+    """
+    p = params(max_reverse_speed=reverse)
+    walker = Mover(start=(1.2, 0.0), velocity=(-0.5, 0.0), radius=0.3)
+    run = simulate(make_controller('fusion', p), (0.0, 0.0, 0.0), [2.8, 0.0], LONG_SLIT,
+                   movers=[walker], duration=8.0, block=True)
+    assert (run.min_mover_clearance > 0.1) == clear
+    assert run.blocked_steps == 0
+    assert_limits(run, p)
+
+
+def test_a_robot_that_may_not_reverse_never_does():
+    p = params(max_reverse_speed=0.0)
+    v, _, evading = evasion.evade(np.zeros(3), np.zeros(2), (0.0, 0.0), np.array([1.0, 0.0]),
+                                  np.array([[1.2, 0.0, -0.35, 0.0, 0.3]]), SLIT, p)
+    assert evading and v == 0.0
 
 
 def test_evasion_steps_aside_rather_than_back_away_where_there_is_room():
@@ -636,6 +663,7 @@ def test_make_controller_names_and_refusals():
     {'max_speed': 0.0}, {'max_accel': -1.0}, {'max_omega': float('nan')}, {'goal_tolerance': 0},
     {'control_period': 0.0}, {'robot_radius': -0.1}, {'prediction_horizon': -1.0},
     {'stuck_window': float('inf')}, {'apf': 'default'}, {'route_heading_gain': 0.0},
+    {'max_reverse_speed': -0.1}, {'max_reverse_speed': float('nan')},
 ])
 def test_bad_follower_params_are_refused(changes):
     with pytest.raises(InvalidInput):

@@ -215,6 +215,9 @@ NODE_PARAMETERS = (
 #: ``control_period`` (``1 / control_rate``) are not declared.
 FOLLOWER_PARAMETERS = {
     'max_speed': ('largest forward speed [m/s]', float_range(0.01, 10.0)),
+    'max_reverse_speed': ('largest reverse speed, at most max_speed; the controllers reverse '
+                          'only to evade a moving obstacle; 0: never [m/s]',
+                          float_range(0.0, 10.0)),
     'max_accel': ('largest change of speed [m/s^2]', float_range(0.01, 20.0)),
     'max_omega': ('largest turn rate [rad/s]', float_range(0.01, 20.0)),
     'max_alpha': ('largest change of turn rate [rad/s^2]', float_range(0.01, 100.0)),

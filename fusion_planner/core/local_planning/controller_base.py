@@ -60,9 +60,12 @@ class FollowerParams:
         Field coefficients; its ``robot_radius`` is replaced by
         ``robot_radius`` below (the follower's value is authoritative).
     max_speed : float
-        Largest forward speed [m/s], > 0. The controllers reverse only to
-        evade a moving obstacle, at most at
-        ``evasion.REVERSE_FRACTION * max_speed``.
+        Largest forward speed [m/s], > 0.
+    max_reverse_speed : float
+        Largest reverse speed [m/s], >= 0 (0: never reverse), capped by
+        ``max_speed`` (:meth:`reverse_speed`). The controllers reverse only
+        to evade a moving obstacle: backing away from a person who walks at
+        the robot gets clear only when it is faster than the person.
     max_accel : float
         Largest change of forward speed [m/s^2], > 0.
     max_omega : float
@@ -131,6 +134,7 @@ class FollowerParams:
 
     apf: ApfParams = field(default_factory=ApfParams)
     max_speed: float = 1.0
+    max_reverse_speed: float = 1.0
     max_accel: float = 1.0
     max_omega: float = 2.0
     max_alpha: float = 4.0
@@ -151,6 +155,10 @@ class FollowerParams:
     point_spacing: float = 0.1
     visibility_range: float = 4.0
 
+    def reverse_speed(self):
+        """The fastest reverse speed [m/s]: ``max_reverse_speed``, at most ``max_speed``."""
+        return min(self.max_reverse_speed, self.max_speed)
+
     def route_gain(self):
         """The route follower's heading gain [1/s]: at most ``0.25 / control_period``.
 
@@ -170,7 +178,8 @@ class FollowerParams:
                      'escape_time_limit', 'heading_gain', 'route_heading_gain', 'approach_gain',
                      'wall_distance', 'point_spacing', 'visibility_range'):
             _check_number(getattr(self, name), name)
-        for name in ('robot_radius', 'prediction_horizon', 'safety_distance', 'sight_clearance'):
+        for name in ('max_reverse_speed', 'robot_radius', 'prediction_horizon', 'safety_distance',
+                     'sight_clearance'):
             _check_number(getattr(self, name), name, strict=False)
         if self.apf.robot_radius != self.robot_radius:
             synced = replace(self.apf, robot_radius=float(self.robot_radius))

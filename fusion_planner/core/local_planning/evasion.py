@@ -28,7 +28,7 @@ Check
     is replaced all the same when a candidate that leaves a way out is safe.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
-    up to ``max_speed``, reverse ones down to :data:`REVERSE_FRACTION` of it,
+    up to ``max_speed``, reverse ones down to ``-max_reverse_speed``,
     turn rates across ``+-max_omega``) and of *pivots* (turn on the spot to
     one of :data:`PIVOT_HEADINGS` headings, then drive straight along it at
     one of :data:`PIVOT_SPEED_FRACTIONS` of ``max_speed``: the side-step
@@ -132,10 +132,8 @@ YIELD_SAFE_TIME = 1.0
 #: them neither waits nor gets away.
 BACKING_YIELD_MARGIN = 0.07
 
-#: Fastest reverse speed of an evasion, as a fraction of ``max_speed``.
-REVERSE_FRACTION = 0.5
-
-#: Target speeds of the evasive fan, as fractions of ``max_speed``.
+#: Target speeds of the evasive fan, as fractions of ``max_speed`` (forward)
+#: and of :meth:`FollowerParams.reverse_speed` (reverse).
 SPEED_FRACTIONS = (-1.0, -0.5, 0.0, 0.25, 0.5, 0.75, 1.0)
 
 #: Target turn rates of the evasive fan, as fractions of ``max_omega``.
@@ -175,8 +173,8 @@ def _times():
 
 def _targets(params):
     """The evasive fan ``(C, 2)`` of target ``(v, omega)`` [m/s, rad/s]."""
-    speeds = np.array(SPEED_FRACTIONS) * params.max_speed
-    speeds = np.where(speeds < 0.0, speeds * REVERSE_FRACTION, speeds)
+    fractions = np.array(SPEED_FRACTIONS)
+    speeds = fractions * np.where(fractions < 0.0, params.reverse_speed(), params.max_speed)
     turns = np.array(TURN_FRACTIONS) * params.max_omega
     v, w = np.meshgrid(speeds, turns, indexing='ij')
     return np.column_stack([v.ravel(), w.ravel()])
@@ -452,7 +450,7 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     -------
     v, omega : float
         Target command [m/s, rad/s] (the caller applies the one-step limits;
-        ``v`` may be negative, down to ``-REVERSE_FRACTION * max_speed``).
+        ``v`` may be negative, down to ``-params.reverse_speed()``).
     evading : bool
         True when ``command`` was replaced.
 

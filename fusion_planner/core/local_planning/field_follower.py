@@ -963,7 +963,7 @@ class FieldFollower(ControllerBase):
             desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
             command = self._evader.evade(obs.pose, obs.velocity, command, desired, movers,
                                          scene.all_points, self.params)[:2]
-            v_min = -evasion.REVERSE_FRACTION * self.params.max_speed
+            v_min = -self.params.reverse_speed()
         else:
             self._evader.forget()
         v, omega = self._limit(command[0], command[1], obs, v_min=v_min)

@@ -209,7 +209,7 @@ class Scenario:
         """The :class:`~fusion_planner.core.local_planning.follow.FollowerParams` of this scenario.
 
         The robot's limits and radius and the control period come from
-        ``robot`` and ``limits``. So does the turn-rate ramp: ``max_alpha``
+        ``robot`` and ``limits``; it reverses as fast as it drives forward. So does the turn-rate ramp: ``max_alpha``
         = ``max_accel / radius`` [rad/s^2], what a differential drive whose
         wheels sit at its radius reaches with both wheels accelerating fully
         in opposite directions (the simulated robot bounds only speed,
@@ -226,7 +226,8 @@ class Scenario:
         overrides = dict(self.follower)
         apf_overrides = overrides.pop('apf', None)
         robot = self.robot
-        values = dict(max_speed=robot.max_speed, max_accel=robot.max_accel,
+        values = dict(max_speed=robot.max_speed, max_reverse_speed=robot.max_speed,
+                      max_accel=robot.max_accel,
                       max_omega=robot.max_omega, max_alpha=robot.max_accel / robot.radius,
                       robot_radius=robot.radius, control_period=self.limits.dt)
         values.update(overrides)
