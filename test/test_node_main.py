@@ -46,3 +46,20 @@ def test_the_same_error_while_running_is_not_hidden(monkeypatch):
     with pytest.raises(RuntimeError):
         node_main.run_node(QuietNode, 'run_node_test', [])
     assert not rclpy.ok()  # run_node shut ROS down on the way out
+
+
+def test_ctrl_c_while_ros_is_up_stops_the_spin_without_a_keyboard_interrupt(monkeypatch):
+    """rclpy's handler shuts the context down; the watch raises nothing where Python happens to be."""
+    raised = []
+
+    def spin(node):
+        try:
+            signal.getsignal(signal.SIGINT)(signal.SIGINT, None)
+        except KeyboardInterrupt:
+            raised.append(True)
+        rclpy.shutdown()  # what rclpy's own handler does before it chains to the watch
+        raise node_main.ExternalShutdownException()
+
+    monkeypatch.setattr(node_main.rclpy, 'spin', spin)
+    assert node_main.run_node(QuietNode, 'run_node_test', []) == 0
+    assert raised == []

@@ -83,3 +83,19 @@ def test_guard_turns_errors_into_counts_and_outcomes(node):
     assert values['plan_time_s'] == 0.01
     with pytest.raises(KeyboardInterrupt):
         reporter.guard('x', lambda: (_ for _ in ()).throw(KeyboardInterrupt()))()
+
+
+def test_an_error_after_the_context_is_shut_down_is_the_stop_not_a_fault():
+    """Ctrl-C shuts the context down under a running callback: its publish then fails."""
+    ctx = Context()
+    rclpy.init(context=ctx)
+    n = Node('diag_stop_test', context=ctx)
+    reporter = DiagnosticsReporter(n)
+    rclpy.shutdown(context=ctx)
+
+    def publish_after_shutdown():
+        raise RuntimeError("Failed to publish: publisher's context is invalid")
+
+    assert reporter.guard('step', publish_after_shutdown, on_error=lambda: 'stopped')() == 'stopped'
+    assert reporter.values['faults'] == 0
+    n.destroy_node()

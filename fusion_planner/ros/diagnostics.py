@@ -221,7 +221,10 @@ class DiagnosticsReporter:
         -------
         callable
             ``PlanningError`` -> :meth:`reject`; any other ``Exception`` ->
-            :meth:`fault`. ``KeyboardInterrupt`` and ``SystemExit`` pass.
+            :meth:`fault`, unless the node's context is shut down (Ctrl-C or
+            shutdown while the callback ran: its publishers fail, and that
+            is the stop, not a fault). ``KeyboardInterrupt`` and
+            ``SystemExit`` pass.
         """
         def guarded(*args):
             try:
@@ -229,7 +232,8 @@ class DiagnosticsReporter:
             except PlanningError as err:
                 self.reject(what, err)
             except Exception as err:  # noqa: BLE001 - a node never dies on a message
-                self.fault(what, err)
+                if self._node.context.ok():
+                    self.fault(what, err)
             return on_error(*args) if on_error is not None else None
         return guarded
 

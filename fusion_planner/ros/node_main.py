@@ -28,6 +28,7 @@ def run_node(node_class, node_name, args=None):
     """
     ctrl_c = _CtrlCWatch()
     rclpy.init(args=args)  # rclpy's signal handler chains to the watch's
+    ctrl_c.ros_up = True
     node = None
     try:
         node = node_class()
@@ -53,19 +54,27 @@ def run_node(node_class, node_name, args=None):
 
 
 class _CtrlCWatch:
-    """Remembers that SIGINT arrived, then raises KeyboardInterrupt as Python does.
+    """Remembers that SIGINT arrived; raises KeyboardInterrupt only before ROS is up.
 
-    Installed before ``rclpy.init`` so that rclpy's own handler (which wakes
-    the executor) chains to it instead of being replaced by it.
+    Installed before ``rclpy.init`` so that rclpy's own handler (which shuts
+    the context down and wakes the executor) chains to it instead of being
+    replaced by it. Once ROS is up (``ros_up``), that shutdown is what ends
+    the spin (``ExternalShutdownException``). A KeyboardInterrupt raised as
+    well lands wherever Python happens to be: inside a ctypes callback of
+    numba's compiler during a node's first step it is printed as a
+    traceback and ignored, inside pybind11's argument conversion it becomes
+    a RuntimeError.
     """
 
     def __init__(self):
         self.seen = False
+        self.ros_up = False
         self._previous = signal.signal(signal.SIGINT, self._on_sigint)
 
     def _on_sigint(self, signum, frame):
         self.seen = True
-        signal.default_int_handler(signum, frame)
+        if not self.ros_up:
+            signal.default_int_handler(signum, frame)
 
     def restore(self):
         """Put back the handler that was there before."""
