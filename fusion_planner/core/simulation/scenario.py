@@ -209,11 +209,12 @@ class Scenario:
         """The :class:`~fusion_planner.core.local_planning.follow.FollowerParams` of this scenario.
 
         The robot's limits and radius and the control period come from
-        ``robot`` and ``limits``; it reverses as fast as it drives forward. So does the turn-rate ramp: ``max_alpha``
-        = ``max_accel / radius`` [rad/s^2], what a differential drive whose
-        wheels sit at its radius reaches with both wheels accelerating fully
-        in opposite directions (the simulated robot bounds only speed,
-        acceleration and turn rate). ``follower`` overrides any field,
+        ``robot`` and ``limits`` (the robot reverses as fast as it drives
+        forward). So does the turn-rate ramp: ``max_alpha`` = ``max_accel /
+        radius`` [rad/s^2], what a differential drive whose wheels sit at its
+        radius reaches with both wheels accelerating fully in opposite
+        directions (the simulated robot bounds only speed, acceleration and
+        turn rate). ``follower`` overrides any field,
         ``max_alpha`` included (an ``apf`` mapping overrides fields of
         ``ApfParams``).
 
