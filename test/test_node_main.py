@@ -49,7 +49,7 @@ def test_the_same_error_while_running_is_not_hidden(monkeypatch):
 
 
 def test_ctrl_c_while_ros_is_up_stops_the_spin_without_a_keyboard_interrupt(monkeypatch):
-    """rclpy's handler shuts the context down; the watch raises nothing where Python happens to be."""
+    """rclpy's handler shuts the context down; the watch raises nothing where Python is."""
     raised = []
 
     def spin(node):

@@ -96,6 +96,7 @@ def test_an_error_after_the_context_is_shut_down_is_the_stop_not_a_fault():
     def publish_after_shutdown():
         raise RuntimeError("Failed to publish: publisher's context is invalid")
 
-    assert reporter.guard('step', publish_after_shutdown, on_error=lambda: 'stopped')() == 'stopped'
+    guarded = reporter.guard('step', publish_after_shutdown, on_error=lambda: 'stopped')
+    assert guarded() == 'stopped'
     assert reporter.values['faults'] == 0
     n.destroy_node()

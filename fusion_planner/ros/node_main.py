@@ -39,10 +39,9 @@ def run_node(node_class, node_name, args=None):
         rclpy.logging.get_logger(node_name).fatal(f'cannot start: {err}')
         return 1
     except RuntimeError:
-        # Ctrl-C during a take raises its KeyboardInterrupt inside pybind11's
-        # argument conversion, which rclpy 7.1 reports as "Unable to convert
-        # call argument", sometimes before the context is shut down. After a
-        # Ctrl-C or a shutdown that is the stop we asked for, not a fault.
+        # A take that Ctrl-C or a shutdown interrupts fails with a
+        # RuntimeError (rclpy 7.1: "Unable to convert call argument"). After
+        # a Ctrl-C or a shutdown that is the stop we asked for, not a fault.
         if rclpy.ok() and not ctrl_c.seen:
             raise
     finally:

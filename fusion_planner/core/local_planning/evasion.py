@@ -28,9 +28,10 @@ Check
     is replaced all the same when a candidate that leaves a way out is safe.
 Evasion
     When the field's command is not safe, a fan of targets (forward speeds
-    up to ``max_speed``, reverse ones down to ``-max_reverse_speed`` capped
-    by it, turn rates across ``+-max_omega``) and of *pivots* (turn on the spot to
-    one of :data:`PIVOT_HEADINGS` headings, then drive straight along it at
+    up to ``max_speed``, reverse ones down to ``-max_reverse_speed`` (at
+    most ``max_speed``), turn rates across ``+-max_omega``) and of *pivots*
+    (turn on the spot to one of :data:`PIVOT_HEADINGS` headings, then drive
+    straight along it at
     one of :data:`PIVOT_SPEED_FRACTIONS` of ``max_speed``: the side-step
     of a robot standing beside a wall, whose every constant arc runs into
     the wall or towards the person) is rolled out the same way and against
