@@ -417,17 +417,31 @@ def test_evasion_keeps_a_safe_command():
     assert evade_now((0.5, 0.1), np.zeros((0, 5))) == (0.5, 0.1, False)
 
 
+def evade_moving(speed, tracked):
+    """evasion.evade for a robot at the origin driving +x at ``speed`` [m/s] and asked to go on."""
+    return evasion.evade(np.zeros(3), np.array([speed, 0.0]), (speed, 0.0), np.array([1.0, 0.0]),
+                         tracked, np.zeros((0, 2)), params())
+
+
 def test_evasion_keeps_room_for_a_person_ahead_to_turn_round():
     """Following a person closely is safe only if it could stop should the person turn round."""
-    p = params()
-    following = np.array([0.3, 0.0])                   # robot at 0.3 m/s behind a person at 0.3
-    ahead = np.array([[0.9, 0.0, 0.3, 0.0, 0.25]])     # gap 0.45 m, walking away
-    v, _, evading = evasion.evade(np.zeros(3), following, (0.3, 0.0), np.array([1.0, 0.0]),
-                                  ahead, np.zeros((0, 2)), p)
+    ahead = np.array([[0.9, 0.0, 0.3, 0.0, 0.25]])     # gap 0.45 m, walking away at 0.3 m/s
+    v, _, evading = evade_moving(0.3, ahead)
     assert evading and v < 0.3
     far_ahead = ahead + [[1.5, 0.0, 0.0, 0.0, 0.0]]
-    assert evasion.evade(np.zeros(3), following, (0.3, 0.0), np.array([1.0, 0.0]),
-                         far_ahead, np.zeros((0, 2)), p) == (0.3, 0.0, False)
+    assert evade_moving(0.3, far_ahead) == (0.3, 0.0, False)
+
+
+def test_evasion_does_not_pass_a_person_at_speed_where_a_turn_of_theirs_would_touch():
+    """The straight prediction passes 0.35 m clear; some of the person's sampled turns do not."""
+    p = params()
+    head_on = np.array([[3.0, 0.8, -0.5, 0.0, 0.25]])  # a person 0.8 m beside its way, coming
+    straight = evasion.rollout(np.zeros(3), np.array([0.8, 0.0]), np.array([[0.8, 0.0]]), p)
+    assert evasion.obstacle_gaps(straight, head_on, p.robot_radius).min() > evasion.MOVING_MARGIN
+    v, _, evading = evade_moving(0.8, head_on)
+    assert evading and v < 0.8
+    farther = head_on + [[0.0, 0.8, 0.0, 0.0, 0.0]]
+    assert evade_moving(0.8, farther) == (0.8, 0.0, False)
 
 
 #: A slit 0.9 m wide along x: no room to step aside of a person in it.
@@ -683,6 +697,8 @@ def test_follower_radius_is_the_field_radius():
     dict(tracked=np.zeros((2, 4))),
     dict(tracked=np.array([[0.0, 0.0, 0.0, 0.0, -1.0]])),
     dict(time=float('nan')),
+    dict(tracked=np.zeros((1, 5)), turn_stds=np.zeros(2)),
+    dict(tracked=np.zeros((1, 5)), turn_stds=np.array([-0.1])),
 ])
 def test_bad_observations_are_refused(fields):
     base = dict(pose=np.zeros(3), velocity=np.zeros(2), obstacle_points=np.zeros((0, 2)),
@@ -690,6 +706,15 @@ def test_bad_observations_are_refused(fields):
     base.update(fields)
     with pytest.raises(InvalidInput):
         Observation(**base)
+
+
+def test_unknown_turn_stds_are_nan():
+    walker = np.array([[1.0, 0.0, 0.5, 0.0, 0.3]])
+    obs = Observation(np.zeros(3), np.zeros(2), np.zeros((0, 2)), walker, 0.0)
+    assert obs.turn_stds.shape == (1,) and np.isnan(obs.turn_stds[0])
+    given = Observation(np.zeros(3), np.zeros(2), np.zeros((0, 2)), walker, 0.0,
+                        turn_stds=[float('nan')])
+    assert np.isnan(given.turn_stds[0])
 
 
 def test_bad_paths_are_refused():
@@ -839,15 +864,16 @@ def test_a_robot_backing_away_waits_again_only_with_a_wider_margin():
         """A person walking at the robot, their line ``gap`` [m] clear of it."""
         return np.array([[0.7, p.robot_radius + 0.25 + gap, -0.3, 0.0, 0.25]])
 
+    straight = np.zeros(1)                                         # seen to walk straight
     between = walker_passing_at(0.5 * (evasion.YIELD_MARGIN + evasion.BACKING_YIELD_MARGIN))
-    v, _, evading = evasion.evade(pose, still, (0.0, 0.0), desired, between, wall, p)
+    v, _, evading = evasion.evade(pose, still, (0.0, 0.0), desired, between, wall, p, straight)
     assert evading and v == 0.0                                    # it waits beside the wall
     evader = evasion.Evader()
     evader.backing = True
-    v, _, evading = evader.evade(pose, still, (0.0, 0.0), desired, between, wall, p)
+    v, _, evading = evader.evade(pose, still, (0.0, 0.0), desired, between, wall, p, straight)
     assert evading and v < 0.0 and evader.backing                  # ... unless it was backing
     wider = walker_passing_at(evasion.BACKING_YIELD_MARGIN + 0.01)
-    v, _, evading = evader.evade(pose, still, (0.0, 0.0), desired, wider, wall, p)
+    v, _, evading = evader.evade(pose, still, (0.0, 0.0), desired, wider, wall, p, straight)
     assert evading and v >= 0.0 and not evader.backing             # waits or goes on
     evader.backing = True
     evader.forget()

@@ -324,3 +324,23 @@ def test_range_noise_does_not_cut_a_walker_in_two():
     counts = [len(segment_scan(ANGLES, clean + n, origin, grid, explained, p.cluster_gap,
                                p.min_points, p.split_depth).centers) for n in noise]
     assert counts == [1] * len(noise)
+
+
+def test_a_walker_going_straight_is_seen_to_turn_less_than_one_who_wanders():
+    """The heading diffusion starts at the prior, falls for a straight walk, rises for a wavy one."""
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(100) * DT                                       # 10 s
+    straight = np.stack([6.0 + 0.5 * t, np.full_like(t, 7.0)], axis=1)
+    heading = 1.2 * np.sin(2.0 * np.pi * t / 4.0)                 # swings +-70 degrees
+    wavy = np.stack([6.0 + np.cumsum(0.5 * DT * np.cos(heading)),
+                     13.0 + np.cumsum(0.5 * DT * np.sin(heading))], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, np.stack([straight, wavy], axis=1))
+    prior = TrackerParams().turn_prior
+    first = next(r for r in reports if len(r.ids) == 2)
+    assert first.turn_stds.tolist() == [prior, prior]
+    last = reports[-1]
+    assert len(last.ids) == 2
+    by_y = np.argsort(last.states[:, 1])
+    straight_std, wavy_std = last.turn_stds[by_y]
+    assert straight_std < 0.5 * prior < wavy_std

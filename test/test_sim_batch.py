@@ -49,11 +49,17 @@ def test_fusion_batch_has_no_collisions(fusion_batch):
         e for e in fusion_batch.episodes if e['collisions']]
 
 
-def test_fusion_batch_told_the_true_moving_obstacles_has_no_collisions():
+def test_fusion_batch_told_the_true_moving_obstacles_has_no_avoidable_contact():
+    """With ideal perception a person may still walk into a robot that cannot get away.
+
+    ``random-2651666590`` has two such (passive) contacts: the robot, cornered
+    between an unknown post and a wall, is caught up by a person behind it.
+    """
     batch = run_batch(BATCH_SIZE, BATCH_SEED, controllers=['fusion'], workers=1,
                       perceptions=('ideal',))
-    assert batch.controllers['fusion'].collisions == 0, [
-        e for e in batch.episodes if e['collisions']]
+    fusion = batch.controllers['fusion']
+    assert fusion.avoidable_collisions == 0, [e for e in batch.episodes if e['collisions']]
+    assert fusion.success_rate >= 0.98, fusion.failures
 
 
 @pytest.mark.parametrize('seed', FORMER_CONTACT_SEEDS)

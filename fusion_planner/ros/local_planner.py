@@ -809,12 +809,12 @@ class LocalPlannerNode(ManagedNode):
             scan_stale = self._scan is None or now - self._scan[1] > params.scan_timeout
             points = np.zeros((0, 2)) if self._scan is None \
                 else frames.transform_points(drift, self._scan[0])
-            scan_tracked, tentative = self._scan_tracks.movers(now)
-            tracked = fuse(scan_tracked, self._tracker.obstacles(now))
+            scan_tracked, tentative, scan_turns = self._scan_tracks.movers(now)
+            tracked, turn_stds = fuse(scan_tracked, self._tracker.obstacles(now), scan_turns)
             obs = follow.Observation(
                 pose=pose, velocity=velocity, obstacle_points=points,
                 tracked=self._in_plan_frame(tracked), time=now,
-                tentative=self._in_plan_frame(tentative))
+                tentative=self._in_plan_frame(tentative), turn_stds=turn_stds)
             self._controller.display_plan = self._local_plan_pub.get_subscription_count() > 0
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the

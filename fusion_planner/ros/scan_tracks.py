@@ -76,11 +76,13 @@ class ScanTracks:
         tracked, tentative : ndarray, shape (K, 5) and (T, 5)
             ``x, y, vx, vy, radius`` (map frame) of the moving tracks and of
             the objects that seem to move but are not confirmed yet.
+        turn_stds : ndarray, shape (K,)
+            How much each moving track turns [rad / sqrt(s)].
         """
         if self._tracker is None:
-            return np.zeros((0, 5)), np.zeros((0, 5))
+            return np.zeros((0, 5)), np.zeros((0, 5)), np.zeros(0)
         report = self._tracker.report(now_s)
-        return report.tracked, report.tentative
+        return report.tracked, report.tentative, report.turn_stds
 
     def report(self):
         """The tracker's TrackReport (None without a map)."""
@@ -92,24 +94,33 @@ class ScanTracks:
             self._tracker.reset()
 
 
-def fuse(scan_tracks, external):
+def fuse(scan_tracks, external, scan_turn_stds):
     """Scan tracks and externally tracked obstacles as one ``(K, 5)`` array.
 
     An external obstacle (from the ``obstacles`` topic) wins over a scan
     track that overlaps it (centres closer than the sum of the radii): both
     are the same object, seen by a better-placed tracker.
 
+    Returns the obstacles and how much each turns ``(K,)`` [rad / sqrt(s)]:
+    ``scan_turn_stds`` for the scan tracks, NaN (unknown) for the external
+    ones.
+
     Examples
     --------
     >>> scan = np.array([[1.0, 0.0, 0.5, 0.0, 0.3], [5.0, 0.0, 0.0, 0.5, 0.3]])
-    >>> fuse(scan, np.array([[1.2, 0.0, 0.4, 0.0, 0.25]]))[:, 0].tolist()
-    [1.2, 5.0]
+    >>> tracked, turns = fuse(scan, np.array([[1.2, 0.0, 0.4, 0.0, 0.25]]), np.array([0.2, 0.4]))
+    >>> tracked[:, 0].tolist(), turns.tolist()
+    ([1.2, 5.0], [nan, 0.4])
     """
+    external = external.reshape(-1, 5)
+    unknown = np.full(len(external), np.nan)
     if not len(external) or not len(scan_tracks):
-        return np.vstack([external.reshape(-1, 5), scan_tracks.reshape(-1, 5)])
+        return (np.vstack([external, scan_tracks.reshape(-1, 5)]),
+                np.concatenate([unknown, scan_turn_stds]))
     gap = np.hypot(*(scan_tracks[:, None, 0:2] - external[None, :, 0:2]).transpose(2, 0, 1))
     overlap = (gap < scan_tracks[:, None, 4] + external[None, :, 4]).any(axis=1)
-    return np.vstack([external, scan_tracks[~overlap]])
+    return (np.vstack([external, scan_tracks[~overlap]]),
+            np.concatenate([unknown, scan_turn_stds[~overlap]]))
 
 
 def tracks_to_markers(report, frame_id, stamp):

@@ -209,12 +209,15 @@ class Observation:
         moving (a scan tracker's tentative movers); default none. A
         controller checks its commands against their predicted motion but
         does not treat them as people.
+    turn_stds : ndarray, float64, shape (K,), optional
+        How much each tracked obstacle turns: its heading diffusion
+        [rad / sqrt(s)] (a scan tracker's estimate); NaN or none: unknown.
 
     Raises
     ------
     InvalidInput
         If a shape is wrong, the pose, velocity or time is not finite, or a
-        tracked radius is negative.
+        tracked radius or a turn std is negative.
     """
 
     pose: np.ndarray
@@ -223,6 +226,7 @@ class Observation:
     tracked: np.ndarray
     time: float
     tentative: np.ndarray = None
+    turn_stds: np.ndarray = None
 
     def __post_init__(self):
         pose = np.asarray(self.pose, dtype=float)
@@ -241,6 +245,11 @@ class Observation:
         tracked = _circles(self.tracked, 'tracked')
         tentative = _circles(np.zeros((0, 5)) if self.tentative is None else self.tentative,
                              'tentative')
+        turn_stds = np.full(len(tracked), np.nan) if self.turn_stds is None \
+            else np.asarray(self.turn_stds, dtype=float)
+        if turn_stds.shape != (len(tracked),) or np.any(turn_stds < 0):
+            raise InvalidInput(f'Observation.turn_stds must be (K,) = ({len(tracked)},) values '
+                               f'>= 0 or NaN, got {self.turn_stds!r}')
         if not (isinstance(self.time, (int, float, np.floating)) and math.isfinite(self.time)):
             raise InvalidInput(
                 f'Observation.time must be a finite number of seconds, got {self.time!r}')
@@ -249,6 +258,7 @@ class Observation:
         object.__setattr__(self, 'obstacle_points', points)
         object.__setattr__(self, 'tracked', tracked)
         object.__setattr__(self, 'tentative', tentative)
+        object.__setattr__(self, 'turn_stds', turn_stds)
         object.__setattr__(self, 'time', float(self.time))
 
 

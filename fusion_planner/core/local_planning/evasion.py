@@ -21,8 +21,18 @@ Check
     A command is safe when its rollout keeps :data:`MOVING_MARGIN` from
     every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
     it also from each obstacle walking back at its speed (a person ahead may
-    turn round; :func:`turning_round`). The evasion's candidates are judged
-    against both as well. A safe command whose rollout ends in a dead end
+    turn round; :func:`turning_round`), and when its *contact risk* is at
+    most :data:`RISK_LIMIT`: over sampled futures in which each obstacle
+    keeps its speed and its heading diffuses as the tracker measured
+    (``turn_stds``; :data:`TURN_STD` if unknown;
+    :mod:`~fusion_planner.core.local_planning.walker_futures`), the mean
+    weight ``exp(-t / RISK_TIME)`` of the first contact (closer than
+    :data:`RISK_MARGIN`) at ``t``. The grown disc covers where a person
+    going straight may be; the futures cover a person who turns (one at
+    0.7 m/s whose heading diffuses by 0.6 rad/sqrt(s) strays 0.24 m
+    sideways in a second, one standard deviation; the disc grows by
+    0.1 m). The evasion's candidates are judged
+    against all three as well. A safe command whose rollout ends in a dead end
     in front of a walking obstacle
     (:mod:`~fusion_planner.core.local_planning.way_out`, past the horizon)
     is replaced all the same when a candidate that leaves a way out is safe.
@@ -40,7 +50,8 @@ Evasion
     stops there, pinned, and one that would do so within
     :data:`STATIC_HORIZON` is refused. Cornered candidates (see Check) are
     dropped when another keeps clear of the grown obstacles over the whole
-    horizon. Candidates that do not reverse and
+    horizon. Only the candidates within :data:`RISK_TOLERANCE` of the
+    least contact risk stay; of them, those that do not reverse and
     keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion are preferred when there are any; then the latest predicted
     contact wins, then the least intrusion into the margin (its time
@@ -81,7 +92,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from fusion_planner.core.local_planning import way_out
+from fusion_planner.core.local_planning import walker_futures, way_out
 from fusion_planner.core.local_planning.local_geometry import points_off_circles
 
 #: Look-ahead of the check [s]: long enough to turn round (pi / max_omega
@@ -166,10 +177,44 @@ CLEARANCE_EPS = 1e-9
 #: good): a commitment, not a new choice every period.
 KEEP_INTRUSION = 0.02
 
+#: Heading diffusion [rad / sqrt(s)] of the sampled futures of an obstacle
+#: whose own is not known (NaN in ``turn_stds``): a person may turn by about
+#: 35 degrees in a second, 50 in two (people wandering in a hall; the scan
+#: tracker measures each track's own, ``TrackerParams.turn_prior`` until it
+#: has).
+TURN_STD = 0.6
+
+#: Clearance [m] below which a sampled future counts as a contact: the
+#: clearance at which a robot may wait beside a person passing it.
+RISK_MARGIN = YIELD_MARGIN
+
+#: Time constant [s] of the weight of a sampled contact: one further off
+#: can still be evaded.
+RISK_TIME = 1.5
+
+#: The field's command is kept only while its contact risk is at most this:
+#: one sampled future in twenty touching the robot now.
+RISK_LIMIT = 0.05
+
+#: Contact risks closer than this count as equal (less than one of the
+#: sampled futures, whose weight is at most 1).
+RISK_TOLERANCE = 0.02
+
 
 def _times():
     """Rollout sample times ``(T,)`` [s]: ``ROLLOUT_STEP`` to ``HORIZON``."""
     return ROLLOUT_STEP * np.arange(1, int(round(HORIZON / ROLLOUT_STEP)) + 1)
+
+
+def _risk(paths, tracked, turn_stds, walls, radius):
+    """Contact risk ``(C,)`` of rollouts ``(C, T, 2)`` over the people's sampled futures.
+
+    ``walls`` ``(M, 2)`` [m] are the static points the futures stop at.
+    """
+    times = _times()
+    futures = walker_futures.sample_futures(tracked, times, turn_stds, walls)
+    reach = radius + tracked[:, 4] + RISK_MARGIN
+    return walker_futures.contact_risk(paths, futures, reach, np.exp(-times / RISK_TIME))
 
 
 def _targets(params):
@@ -363,10 +408,10 @@ def _first(mask):
 
 
 def _relevant(q, tracked, params):
-    """The tracked obstacles that can come within the margin during the horizon."""
+    """Whether each tracked obstacle ``(K,)`` can come within the margin during the horizon."""
     gap = np.hypot(*(tracked[:, 0:2] - q).T) - tracked[:, 4] - params.robot_radius
     closing = params.max_speed + np.hypot(*tracked[:, 2:4].T) + UNCERTAINTY_RATE
-    return tracked[gap - MOVING_MARGIN < closing * HORIZON]
+    return gap - MOVING_MARGIN < closing * HORIZON
 
 
 def _cornered(q, paths, tracked, points, params):
@@ -416,17 +461,17 @@ class Evader:
         self.kept = None
         self.backing = False
 
-    def evade(self, pose, velocity, command, desired, tracked, points, params):
+    def evade(self, pose, velocity, command, desired, tracked, points, params, turn_stds=None):
         """:func:`evade`, keeping the last forward choice while it is as good as the best."""
         v, omega, evading, chosen = _evade(pose, velocity, command, desired, tracked, points,
-                                           params, self.kept, self.backing)
+                                           params, turn_stds, self.kept, self.backing)
         forward = chosen is not None and (chosen[0] == 'pivot' or chosen[1] >= 0.0)
         self.kept = chosen if evading and forward else None
         self.backing = evading and not forward
         return v, omega, evading
 
 
-def evade(pose, velocity, command, desired, tracked, points, params):
+def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=None):
     """Keep a command when it is safe; otherwise the best evasive one.
 
     Parameters
@@ -446,6 +491,9 @@ def evade(pose, velocity, command, desired, tracked, points, params):
         :data:`~fusion_planner.core.local_planning.local_geometry.TRACKED_POINT_MARGIN` of a
         tracked obstacle are not static and are left out.
     params : FollowerParams
+    turn_stds : ndarray, shape (K,), optional
+        Heading diffusion [rad / sqrt(s)] of each tracked obstacle; NaN or
+        none: :data:`TURN_STD`.
 
     Returns
     -------
@@ -463,8 +511,9 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     unless every candidate would. One that ends cornered in front of a
     walking obstacle (:func:`_cornered`) is dropped when another keeps clear
     of the grown obstacles over the whole horizon; a safe command
-    that ends cornered is kept only when no such other is left. When some
-    of the others do not reverse
+    that ends cornered is kept only when no such other is left. Of the
+    rest, only those within :data:`RISK_TOLERANCE` of the least contact
+    risk stay. When some of them do not reverse
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
     choice is among those, and among those of them that do not
@@ -475,23 +524,31 @@ def evade(pose, velocity, command, desired, tracked, points, params):
     most progress along ``desired``, then the turn rate nearest
     ``command``'s (a robot that waits keeps its heading rather than spin).
     """
-    return _evade(pose, velocity, command, desired, tracked, points, params, None)[:3]
+    return _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
+                  None)[:3]
 
 
-def _evade(pose, velocity, command, desired, tracked, points, params, kept, backing=False):
+def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds, kept,
+           backing=False):
     """:func:`evade` with a kept choice and the last call's backing (see :class:`Evader`).
 
     Also returns the choice made.
     """
     q = pose[:2]
-    tracked = _relevant(q, tracked, params)
+    relevant = _relevant(q, tracked, params)
+    tracked = tracked[relevant]
     if len(tracked) == 0:
         return command[0], command[1], False, None
+    turn_stds = np.full(len(relevant), np.nan) if turn_stds is None \
+        else np.asarray(turn_stds, float)
+    turn_stds = np.where(np.isfinite(turn_stds), turn_stds, TURN_STD)[relevant]
     movers, until = turning_round(tracked)
+    walls = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
     ahead = rollout(pose, velocity, nominal, params)
-    safe = np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN
+    safe = np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN \
+        and _risk(ahead, tracked, turn_stds, walls, radius)[0] <= RISK_LIMIT
     if safe and not _cornered(q, ahead, tracked, points, params)[0]:
         return command[0], command[1], False, None
     fan = np.vstack([nominal, _targets(params)])
@@ -518,6 +575,8 @@ def _evade(pose, velocity, command, desired, tracked, points, params, kept, back
         return command[0], command[1], False, None  # cornered, but nothing better is safe
     if with_way_out is not None:
         allowed = with_way_out
+    risk = _risk(paths, tracked, turn_stds, walls, radius)
+    allowed &= risk <= np.min(risk[allowed]) + RISK_TOLERANCE
     margin = BACKING_YIELD_MARGIN if backing else YIELD_MARGIN
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
         & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= margin, axis=1)

@@ -152,6 +152,7 @@ class _Scene:
     all_points: np.ndarray        # (M, 2) every finite point (safety checks) [m]
     tracked: np.ndarray           # (K, 5) finite tracked obstacles x, y, vx, vy, radius
     tentative: np.ndarray         # (T, 5) finite tentative movers, the same
+    turn_stds: np.ndarray         # (K,) their heading diffusion [rad/sqrt(s)], NaN: unknown
     nearest_ahead: float          # boundary distance to the nearest obstacle ahead [m]
                                   # (not measured for a route follower)
     repelling: tuple = None       # route followers: (points, velocities, weights) that repel
@@ -291,7 +292,9 @@ class FieldFollower(ControllerBase):
         points = obs.obstacle_points
         if len(points) and not np.all(np.isfinite(points)):
             points = points[np.all(np.isfinite(points), axis=1)]
-        tracked, tentative = _finite_rows(obs.tracked), _finite_rows(obs.tentative)
+        finite = np.all(np.isfinite(obs.tracked), axis=1)
+        tracked, turn_stds = obs.tracked[finite], obs.turn_stds[finite]
+        tentative = _finite_rows(obs.tentative)
         thinned = thin_points(points, p.point_spacing)
         if len(thinned):
             # only points within rho0 of the robot or of its rollout exert a force
@@ -303,6 +306,7 @@ class FieldFollower(ControllerBase):
                       field_velocities=np.vstack([np.zeros_like(thinned), velocities]),
                       field_weights=np.concatenate([np.ones(len(thinned)), weights]),
                       all_points=points, tracked=tracked, tentative=tentative,
+                      turn_stds=turn_stds,
                       nearest_ahead=(math.inf if self._route is not None  # braking path instead
                                      else self._nearest_ahead(obs.pose, thinned, tracked)))
 
@@ -961,8 +965,9 @@ class FieldFollower(ControllerBase):
         if self.predict and len(movers):
             norm = math.hypot(desired[0], desired[1])
             desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
+            turn_stds = np.concatenate([scene.turn_stds, np.full(len(scene.tentative), np.nan)])
             command = self._evader.evade(obs.pose, obs.velocity, command, desired, movers,
-                                         scene.all_points, self.params)[:2]
+                                         scene.all_points, self.params, turn_stds)[:2]
             v_min = -self.params.reverse_speed()
         else:
             self._evader.forget()

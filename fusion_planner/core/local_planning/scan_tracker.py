@@ -54,6 +54,15 @@ controller avoids (:attr:`Observation.tracked`):
    corner at first shows only its front, whose centre estimate stands
    still, or slips back, while more of it comes into view, and its speed
    estimate passes through zero.
+7. **Turns**: how much each track turns, its heading diffusion
+   [rad / sqrt(s)] (:attr:`TrackReport.turn_stds`), for a controller that
+   samples where a person may go (a person walking down a corridor turns
+   less than one wandering in a hall). Every ``turn_window`` the direction
+   of a track's travel over the window is compared with that over the
+   window before (positions, not the filtered velocity, whose direction
+   wobbles far more); the squared change, scaled to a diffusion, enters a
+   running mean of time constant ``turn_memory``, which starts at
+   ``turn_prior``.
 
 Deterministic: the same scans give the same tracks (no randomness; ties in
 the assignment are broken by index). Vectorised over beams, candidates and
@@ -161,6 +170,13 @@ class TrackerParams:
         A cell not hit for longer than this [s] starts a new run of hits.
     max_tracks : int
         Cap on live tracks; the candidates nearest the laser are kept.
+    turn_prior : float
+        Heading diffusion [rad / sqrt(s)] assumed of a track not yet seen to
+        walk straight or turn (see :attr:`TrackReport.turn_stds`).
+    turn_window : float
+        Interval [s] over which a track's heading change is measured.
+    turn_memory : float
+        Time constant [s] of the running estimate of its heading diffusion.
     """
 
     map_tolerance: float = 0.15
@@ -183,13 +199,17 @@ class TrackerParams:
     static_age: float = 1.0
     hit_break: float = 0.3
     max_tracks: int = 100
+    turn_prior: float = 0.6
+    turn_window: float = 1.0
+    turn_memory: float = 2.0
 
     def __post_init__(self):
         for name in ('map_tolerance', 'cluster_gap', 'split_depth', 'max_object_radius',
                      'measurement_std',
                      'acceleration_std', 'initial_speed_std', 'gate', 'max_gate_distance',
                      'size_ratio',
-                     'coast_time', 'radius_smoothing', 'static_age', 'hit_break'):
+                     'coast_time', 'radius_smoothing', 'static_age', 'hit_break',
+                     'turn_prior', 'turn_window', 'turn_memory'):
             _check_real(name, getattr(self, name), zero_ok=False)
         for name in ('min_speed', 'min_travel', 'stop_time'):
             _check_real(name, getattr(self, name), zero_ok=True)
@@ -246,6 +266,9 @@ class TrackReport:
     tentative : ndarray, float64, shape (T, 5)
         ``x, y, vx, vy, radius`` of the tentative movers (module notes,
         step 6), same frame and units.
+    turn_stds : ndarray, float64, shape (K,)
+        Each track's heading diffusion [rad / sqrt(s)] (module notes, step
+        7): how much it turns.
     """
 
     ids: np.ndarray
@@ -253,6 +276,7 @@ class TrackReport:
     covariances: np.ndarray
     radii: np.ndarray
     tentative: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 5)))
+    turn_stds: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
 
     @property
     def tracked(self):
@@ -296,6 +320,9 @@ class ScanTracker:
         self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
         self._stays = np.zeros(0, bool)    # its returns stayed in old cells at its last match
         self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
+        self._turn_var = np.zeros(0)       # heading diffusion estimate [rad^2 / s]
+        self._anchors = np.zeros((0, 2, 2))  # positions at the last two window ends [m]
+        self._anchor_time = np.zeros(0)    # time of the later one [s]
 
     def update(self, angles, ranges, origin, time):
         """Take in one scan.
@@ -337,6 +364,7 @@ class ScanTracker:
         matched = track_of >= 0
         whole = matched & ~occluded
         self._correct(track_of[whole], centers[whole], radii[whole])
+        self._measure_turns(track_of[whole])
         # a partly hidden object's centre is biased: its track coasts, but lives on
         self._last_seen[track_of[matched & occluded]] = self.time
         # an object whose returns stay in the same cells is not moving, whatever
@@ -381,7 +409,8 @@ class ScanTracker:
         return TrackReport(ids=self._ids[keep].copy(), states=states[keep],
                            covariances=self._p[keep].copy(), radii=self._radius[keep].copy(),
                            tentative=np.column_stack([states[tentative],
-                                                      self._radius[tentative]]).reshape(-1, 5))
+                                                      self._radius[tentative]]).reshape(-1, 5),
+                           turn_stds=np.sqrt(self._turn_var[keep]))
 
     @property
     def live_tracks(self):
@@ -458,6 +487,35 @@ class ScanTracker:
         self._hits[tracks] += 1
         self._last_seen[tracks] = self.time
 
+    def _measure_turns(self, tracks):
+        """Update the heading diffusion of ``tracks`` just corrected (module notes, step 7).
+
+        The heading is measured from the track's positions, not its velocity
+        (whose direction is far noisier): the direction of its travel over
+        one ``turn_window`` against that over the window before. For a
+        heading that diffuses by ``s`` [rad / sqrt(s)], the difference of
+        its means over two windows of ``w`` [s] has variance ``2 w s^2 / 3``.
+        """
+        p = self.params
+        now = self._x[tracks, 0:2]
+        window = self.time - self._anchor_time[tracks]
+        due = window >= p.turn_window
+        tracks, now, window = tracks[due], now[due], window[due]
+        before = self._anchors[tracks, 1] - self._anchors[tracks, 0]
+        after = now - self._anchors[tracks, 1]
+        least = p.min_speed * window
+        walked = (np.hypot(*before.T) >= least) & (np.hypot(*after.T) >= least)
+        turned = np.angle(np.exp(1j * (np.arctan2(after[:, 1], after[:, 0])
+                                       - np.arctan2(before[:, 1], before[:, 0]))))
+        done = tracks[walked]
+        var = self._turn_var[done]
+        weight = np.minimum(window[walked] / p.turn_memory, 1.0)
+        sample = 1.5 * turned[walked] ** 2 / window[walked]
+        self._turn_var[done] = var + weight * (sample - var)
+        self._anchors[tracks, 0] = self._anchors[tracks, 1]
+        self._anchors[tracks, 1] = now
+        self._anchor_time[tracks] = self.time
+
     def _drop_lost(self):
         unseen = self._last_seen < self.time
         tentative = self._hits < self.params.confirm_hits
@@ -492,6 +550,9 @@ class ScanTracker:
         self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
         self._stays = np.concatenate([self._stays, np.zeros(n, bool)])
         self._staying_since = np.concatenate([self._staying_since, np.full(n, np.inf)])
+        self._turn_var = np.concatenate([self._turn_var, np.full(n, self.params.turn_prior ** 2)])
+        self._anchors = np.concatenate([self._anchors, np.repeat(centers[:, None], 2, axis=1)])
+        self._anchor_time = np.concatenate([self._anchor_time, np.full(n, self.time)])
 
     def _mark_moving(self):
         p = self.params
@@ -518,6 +579,8 @@ class ScanTracker:
         self._slow_since = self._slow_since[mask]
         self._stays = self._stays[mask]
         self._staying_since = self._staying_since[mask]
+        self._turn_var = self._turn_var[mask]
+        self._anchors, self._anchor_time = self._anchors[mask], self._anchor_time[mask]
 
 
 def _checked_scan(angles, ranges, origin, time):

@@ -371,7 +371,8 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
         tracked = perceive.tracked(world, scan)
         obs = follow.Observation(pose=world.pose.copy(), velocity=world.velocity.copy(),
                                  obstacle_points=scan.points, tracked=tracked,
-                                 time=world.time, tentative=perceive.tentative)
+                                 time=world.time, tentative=perceive.tentative,
+                                 turn_stds=perceive.turn_stds)
         command = controller.compute(obs)
         if record:
             trajectory.append(world.pose.copy())

@@ -39,6 +39,9 @@ class ScanPerception:
     tentative : ndarray, shape (T, 5)
         ``x, y, vx, vy, radius`` of the tentative movers after the last
         :meth:`tracked` (map frame).
+    turn_stds : ndarray, shape (K,)
+        The tracker's estimate of how much each moving track turns
+        [rad / sqrt(s)], after the last :meth:`tracked`.
     """
 
     mode = 'scan'
@@ -46,12 +49,14 @@ class ScanPerception:
     def __init__(self, grid):
         self.tracker = ScanTracker(grid)
         self.tentative = np.zeros((0, 5))
+        self.turn_stds = np.zeros(0)
 
     def tracked(self, world, scan):
         """``(K, 5)`` ``x, y, vx, vy, radius`` of the moving tracks after ``scan`` (map frame)."""
         self.tracker.update(scan.angles, scan.ranges, scan.origin, world.time)
         report = self.tracker.report()
         self.tentative = report.tentative
+        self.turn_stds = report.turn_stds
         return report.tracked
 
 
@@ -62,13 +67,20 @@ class IdealPerception:
     ----------
     tentative : ndarray, shape (0, 5)
         None: the oracle is sure of every obstacle.
+    turn_stds : ndarray, shape (K,)
+        How much each one turns [rad / sqrt(s)], from its motion
+        (:meth:`World.turn_stds`), after the last :meth:`tracked`.
     """
 
     mode = 'ideal'
     tentative = np.zeros((0, 5))
 
+    def __init__(self):
+        self.turn_stds = np.zeros(0)
+
     def tracked(self, world, scan):
         """``(K, 5)`` ``x, y, vx, vy, radius`` of every moving obstacle (map frame)."""
+        self.turn_stds = world.turn_stds()
         return world.tracked_obstacles()
 
 

@@ -836,6 +836,19 @@ class World:
             return np.zeros((0, 5))
         return np.array([[*m.position, *m.velocity, m.spec.radius] for m in self._movers], float)
 
+    def turn_stds(self):
+        """How much each moving obstacle turns, as an ideal tracker would know it.
+
+        Returns
+        -------
+        ndarray, float64, shape (K,)
+            Heading diffusion [rad / sqrt(s)]: a random walk's ``turn_std``,
+            0 for the other motions (their turns, bounces and the ends of
+            their legs are not a diffusion).
+        """
+        return np.array([m.spec.motion.turn_std if isinstance(m.spec.motion, RandomWalkMotion)
+                         else 0.0 for m in self._movers], float)
+
     def clearance(self):
         """Distance [m] from the robot's boundary to the nearest obstacle of any kind.
 
