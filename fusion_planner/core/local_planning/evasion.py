@@ -206,15 +206,10 @@ def _times():
     return ROLLOUT_STEP * np.arange(1, int(round(HORIZON / ROLLOUT_STEP)) + 1)
 
 
-def _risk(paths, tracked, turn_stds, walls, radius):
-    """Contact risk ``(C,)`` of rollouts ``(C, T, 2)`` over the people's sampled futures.
-
-    ``walls`` ``(M, 2)`` [m] are the static points the futures stop at.
-    """
-    times = _times()
-    futures = walker_futures.sample_futures(tracked, times, turn_stds, walls)
+def _risk(paths, futures, tracked, radius):
+    """Contact risk ``(C,)`` of rollouts ``(C, T, 2)`` over the people's sampled ``futures``."""
     reach = radius + tracked[:, 4] + RISK_MARGIN
-    return walker_futures.contact_risk(paths, futures, reach, np.exp(-times / RISK_TIME))
+    return walker_futures.contact_risk(paths, futures, reach, np.exp(-_times() / RISK_TIME))
 
 
 def _targets(params):
@@ -543,12 +538,14 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
         else np.asarray(turn_stds, float)
     turn_stds = np.where(np.isfinite(turn_stds), turn_stds, TURN_STD)[relevant]
     movers, until = turning_round(tracked)
-    walls = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
+    # the people's sampled futures stop at the static points
+    futures = walker_futures.sample_futures(
+        tracked, _times(), turn_stds, points_off_circles(points, tracked[:, 0:2], tracked[:, 4]))
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
     ahead = rollout(pose, velocity, nominal, params)
     safe = np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN \
-        and _risk(ahead, tracked, turn_stds, walls, radius)[0] <= RISK_LIMIT
+        and _risk(ahead, futures, tracked, radius)[0] <= RISK_LIMIT
     if safe and not _cornered(q, ahead, tracked, points, params)[0]:
         return command[0], command[1], False, None
     fan = np.vstack([nominal, _targets(params)])
@@ -575,7 +572,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
         return command[0], command[1], False, None  # cornered, but nothing better is safe
     if with_way_out is not None:
         allowed = with_way_out
-    risk = _risk(paths, tracked, turn_stds, walls, radius)
+    risk = _risk(paths, futures, tracked, radius)
     allowed &= risk <= np.min(risk[allowed]) + RISK_TOLERANCE
     margin = BACKING_YIELD_MARGIN if backing else YIELD_MARGIN
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
