@@ -211,6 +211,10 @@ def test_bad_parameters_are_refused():
         TrackerParams(stop_time=-0.1)
     with pytest.raises(InvalidInput, match='split_depth'):
         TrackerParams(split_depth=0.0)
+    with pytest.raises(InvalidInput, match='turn_window'):
+        TrackerParams(turn_window=0.0)
+    with pytest.raises(InvalidInput, match='turn_prior'):
+        TrackerParams(turn_prior=float('nan'))
 
 
 def test_a_slow_walker_is_a_tentative_mover_before_it_has_travelled_far_enough():

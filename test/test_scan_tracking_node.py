@@ -32,6 +32,7 @@ from fusion_planner.ros import conversions as conv  # noqa: E402
 from fusion_planner.ros.fuzz import FuzzTarget  # noqa: E402
 from fusion_planner.ros.global_planner import GlobalPlannerNode  # noqa: E402
 from fusion_planner.ros.local_planner import LocalPlannerNode  # noqa: E402
+from fusion_planner.ros.scan_tracks import fuse  # noqa: E402
 from fusion_planner.ros.simulator import SimulatorNode  # noqa: E402
 
 from test_faults import free_running  # noqa: E402
@@ -176,3 +177,14 @@ def test_bad_scans_at_the_node_are_refused_or_not_tracked_with_a_reason(context)
         assert target.diagnostics()['faults'] == 0
     finally:
         node.destroy_node()
+
+
+def test_fused_obstacles_keep_the_scan_tracks_turn_estimates_and_nan_for_the_others():
+    scan = np.array([[1.0, 0.0, 0.5, 0.0, 0.3], [5.0, 0.0, 0.0, 0.5, 0.3],
+                     [9.0, 0.0, 0.5, 0.0, 0.3]])
+    external = np.array([[1.1, 0.0, 0.4, 0.0, 0.25]])         # the same person as scan track 0
+    tracked, turns = fuse(scan, external, np.array([0.2, 0.4, 0.1]))
+    assert tracked[:, 0].tolist() == [1.1, 5.0, 9.0]
+    assert np.isnan(turns[0]) and turns[1:].tolist() == [0.4, 0.1]
+    alone, alone_turns = fuse(scan, np.zeros((0, 5)), np.array([0.2, 0.4, 0.1]))
+    assert len(alone) == 3 and alone_turns.tolist() == [0.2, 0.4, 0.1]

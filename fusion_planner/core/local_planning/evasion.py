@@ -93,7 +93,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from fusion_planner.core.local_planning import walker_futures, way_out
-from fusion_planner.core.local_planning.local_geometry import points_off_circles
+from fusion_planner.core.local_planning.local_geometry import held_before, points_off_circles
 
 #: Look-ahead of the check [s]: long enough to turn round (pi / max_omega
 #: plus the ramp of max_alpha) before an obstacle at half the robot's top
@@ -387,16 +387,6 @@ def static_clearance(q, paths, points, tracked, robot_radius):
     return now, nearest - robot_radius
 
 
-def _held(paths, q, blocked):
-    """Rollouts ``(C, T, 2)`` that stop at their last sample before ``blocked`` (``(C,)``).
-
-    A rollout blocked at its first sample stays at ``q``.
-    """
-    last = np.minimum(np.arange(paths.shape[1])[None, :], blocked[:, None] - 1)   # (C, T)
-    kept = np.take_along_axis(paths, np.maximum(last, 0)[..., None], axis=1)
-    return np.where(last[..., None] >= 0, kept, q)
-
-
 def _first(mask):
     """Index of the first True along the last axis of ``mask`` (C, T); T where none."""
     return np.where(mask.any(axis=1), mask.argmax(axis=1), mask.shape[1])
@@ -563,7 +553,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     allowed = blocked >= int(round(STATIC_HORIZON / ROLLOUT_STEP))
     if not np.any(allowed):
         allowed = blocked == np.max(blocked)
-    paths = _held(paths, q, blocked)
+    paths = held_before(paths, q, blocked)
     gaps = obstacle_gaps(paths, movers, radius, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))

@@ -73,6 +73,18 @@ def thin_points(points, spacing):
     return points[np.sort(first)]
 
 
+def held_before(paths, start, blocked):
+    """Paths ``(N, T, 2)`` [m] that stop at their last sample before ``blocked`` (``(N,)``).
+
+    A path blocked at its first sample stays at ``start`` [m] (``(2,)``, or
+    ``(N, 2)``: one start per path); ``blocked`` equal to ``T`` leaves a path
+    as it is.
+    """
+    last = np.minimum(np.arange(paths.shape[1])[None, :], blocked[:, None] - 1)   # (N, T)
+    kept = np.take_along_axis(paths, np.maximum(last, 0)[..., None], axis=1)
+    return np.where(last[..., None] >= 0, kept, np.reshape(start, (-1, 1, 2)))
+
+
 def points_off_circles(points, centres, radii, margin=TRACKED_POINT_MARGIN):
     """The points farther than ``margin`` [m] from every circle's boundary.
 

@@ -19,6 +19,8 @@ import functools
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fusion_planner.core.local_planning.local_geometry import held_before
+
 #: Number of sampled futures per tracked obstacle (even: antithetic pairs).
 SAMPLES = 32
 
@@ -73,9 +75,11 @@ def sample_futures(tracked, times, turn_stds, walls=None):
     clearance = tree.query(futures.reshape(-1, 2))[0].reshape(futures.shape[:3])
     blocked = clearance < np.minimum(tracked[:, 4], now)                      # (S, T, K)
     first = np.where(blocked.any(axis=1), blocked.argmax(axis=1), len(times))  # (S, K)
-    last = np.minimum(np.arange(len(times))[None, :, None], first[:, None, :] - 1)  # (S, T, K)
-    held = np.take_along_axis(futures, np.maximum(last, 0)[..., None], axis=1)
-    return np.where(last[..., None] >= 0, held, tracked[:, 0:2])
+    samples, steps, count = futures.shape[:3]
+    paths = futures.transpose(0, 2, 1, 3).reshape(samples * count, steps, 2)   # (S K, T, 2)
+    starts = np.tile(tracked[:, 0:2], (samples, 1))
+    held = held_before(paths, starts, first.reshape(-1))
+    return held.reshape(samples, count, steps, 2).transpose(0, 2, 1, 3)
 
 
 def contact_risk(paths, futures, reach, weights):
