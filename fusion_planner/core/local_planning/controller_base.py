@@ -527,7 +527,10 @@ class ControllerBase:
         ``gain`` [1/s] is the turn rate per radian of heading error
         (default ``heading_gain``); ``error`` [rad] the heading error to turn
         through (default ``heading`` less the yaw, wrapped; beyond pi to
-        turn the long way round).
+        turn the long way round). Returns the target ``(v, omega)``
+        [m/s, rad/s], not yet within the one-step limits (:meth:`_limit`):
+        a check of where the command leads (the evasion) must roll out what
+        the robot is steered towards, not one step of the ramp to it.
         """
         p = self.params
         gain = p.heading_gain if gain is None else gain
@@ -536,4 +539,4 @@ class ControllerBase:
                    p.max_omega)
         omega = math.copysign(turn, error)
         v = min(p.max_speed, v_cap) * max(0.0, math.cos(error))**2
-        return self._limit(v, omega, obs)
+        return v, omega

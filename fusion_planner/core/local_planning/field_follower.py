@@ -909,7 +909,7 @@ class FieldFollower(ControllerBase):
         return bool(np.min(gaps) < GIVING_WAY_GAP)
 
     def _field_command(self, obs, scene, direction, goal_distance):
-        """Heading control along ``direction`` under the speed caps: ``(v, omega)``.
+        """Heading control along ``direction`` under the speed caps: the target ``(v, omega)``.
 
         Caps: the adaptive step of eq. (18) (floored at
         :data:`MIN_STEP_FRACTION` of ``max_speed``), the approach cap

@@ -122,7 +122,8 @@ class PathTracker(ControllerBase):
                                    f'{p.stuck_progress:g} m in {p.stuck_window:g} s, and path '
                                    'tracking has no obstacle avoidance', carrot.copy())
         offset = carrot - q
-        v, w = self._steer(math.atan2(offset[1], offset[0]), p.approach_gain * goal_distance, obs)
+        v, w = self._limit(*self._steer(math.atan2(offset[1], offset[0]),
+                                        p.approach_gain * goal_distance, obs), obs)
         plan = np.vstack([q, ahead[:LOCAL_PLAN_POINTS * PLAN_STRIDE:PLAN_STRIDE]]) \
             if self.display_plan else None
         return Command(v, w, 'moving', sub_goal=carrot.copy(), local_plan=plan)
