@@ -346,7 +346,7 @@ def turning_round(tracked):
     return np.vstack([tracked, back]), until
 
 
-def static_clearance(q, paths, points, tracked, robot_radius):
+def static_clearance(q, paths, walls, robot_radius):
     """Present clearance and clearance along each rollout to the static points [m].
 
     Parameters
@@ -355,13 +355,10 @@ def static_clearance(q, paths, points, tracked, robot_radius):
         Robot position now [m].
     paths : ndarray, shape (C, T, 2)
         Rollouts [m].
-    points : ndarray, shape (M, 2)
-        Sensed obstacle points [m]; only those the rollouts can reach count,
-        and those within
-        :data:`~fusion_planner.core.local_planning.local_geometry.TRACKED_POINT_MARGIN` of a
-        tracked obstacle are not static.
-    tracked : ndarray, shape (K, 5)
-        Tracked obstacles ``x, y, vx, vy, radius``.
+    walls : ndarray, shape (M, 2)
+        Static obstacle points [m] (the sensed points off the tracked
+        obstacles, :func:`~fusion_planner.core.local_planning.local_geometry.points_off_circles`);
+        only those the rollouts can reach count.
     robot_radius : float
         [m].
 
@@ -376,9 +373,8 @@ def static_clearance(q, paths, points, tracked, robot_radius):
     travel = paths - q
     reach = math.sqrt(float(np.max(np.einsum('ijk,ijk->ij', travel, travel)))) \
         + robot_radius + STATIC_MARGIN
-    d = points - q
-    points = points[np.einsum('ij,ij->i', d, d) <= reach * reach]
-    points = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
+    d = walls - q
+    points = walls[np.einsum('ij,ij->i', d, d) <= reach * reach]
     if len(points) == 0:
         return math.inf, np.full(paths.shape[:2], math.inf)
     tree = cKDTree(points)
@@ -528,9 +524,8 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
         else np.asarray(turn_stds, float)
     turn_stds = np.where(np.isfinite(turn_stds), turn_stds, TURN_STD)[relevant]
     movers, until = turning_round(tracked)
-    # the people's sampled futures stop at the static points
-    futures = walker_futures.sample_futures(
-        tracked, _times(), turn_stds, points_off_circles(points, tracked[:, 0:2], tracked[:, 4]))
+    walls = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
+    futures = walker_futures.sample_futures(tracked, _times(), turn_stds, walls)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
     ahead = rollout(pose, velocity, nominal, params)
@@ -548,7 +543,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     paths = np.concatenate([rollout(pose, velocity, fan, params),
                             pivot_rollout(pose, velocity, headings, speeds, params)])
     kept_index = None if kept is None else (len(fan) - 1 if kept[0] == 'arc' else len(targets) - 1)
-    now, along = static_clearance(q, paths, points, tracked, radius)
+    now, along = static_clearance(q, paths, walls, radius)
     blocked = _first(along < min(STATIC_MARGIN, now) - CLEARANCE_EPS)          # (C,)
     allowed = blocked >= int(round(STATIC_HORIZON / ROLLOUT_STEP))
     if not np.any(allowed):
