@@ -24,7 +24,7 @@ from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation.dynamic_families import scenario_of
 from fusion_planner.core.simulation.episodes import run_episode
 from fusion_planner.core.simulation.world import (
-    BounceMotion, MovingObstacle, RobotSpec, WaypointMotion, World)
+    BounceMotion, MovingObstacle, RobotSpec, WaypointMotion, World, integrate_unicycle)
 
 DT = 0.05            # control period and integration step [s]
 RADIUS = 0.2         # robot radius [m]
@@ -391,9 +391,9 @@ def no_evasion(monkeypatch):
 def test_a_person_walking_into_a_trapped_robot_is_evaded(lateral, request):
     """Inside the U of Figure 5b, pinned by the field against its bottom, a person walks in.
 
-    The improved field straight to the goal (no route to shape it) alone keeps the robot in the local minimum until the person
-    (who ignores the robot) walks into it; the evasion layer gets it out of
-    the way in time.
+    The improved field straight to the goal (no route to shape it) alone keeps
+    the robot in the local minimum until the person (who ignores the robot)
+    walks into it; the evasion layer gets it out of the way in time.
     """
     p = params()
     start = (5.4, lateral, 0.0)
@@ -425,6 +425,40 @@ def evade_moving(speed, tracked):
     """evasion.evade for a robot at the origin driving +x at ``speed`` [m/s] and asked to go on."""
     return evasion.evade(np.zeros(3), np.array([speed, 0.0]), (speed, 0.0), np.array([1.0, 0.0]),
                          tracked, np.zeros((0, 2)), params())
+
+
+@pytest.mark.parametrize('period', [0.05, 0.1, 0.2])
+def test_evasion_rollouts_are_where_the_limited_commands_take_the_robot(period):
+    """Arcs and pivots, from random velocities, against the robot driven period by period.
+
+    Each period the controller's command moves one step of the ramps towards the target and
+    is held for the period (as the simulation and a real base do). A rollout that uses each
+    step's end velocity and heading for the whole step (or longer steps than the controller's)
+    puts a robot turning at 2 rad/s 5-30 cm away from where it will be within the horizon.
+    """
+    p = params(control_period=period)
+    rng = np.random.default_rng(7)
+    per_sample = int(round(evasion.ROLLOUT_STEP / period))
+    for _ in range(40):
+        velocity = rng.uniform([-0.8, -2.0], [0.8, 2.0])
+        target = rng.uniform([-0.8, -2.0], [0.8, 2.0])
+        heading, speed = rng.uniform(-math.pi, math.pi), 0.8
+        arc = evasion.rollout(np.zeros(3), velocity, target[None], p)[0]
+        pivot = evasion.pivot_rollout(np.zeros(3), velocity, np.array([heading]), np.array([speed]),
+                                      p)[0]
+        for path, command_of in ((arc, lambda pose: target),
+                                 (pivot, lambda pose: evasion.pivot_command(
+                                     np.array([pose[2]]), np.array([heading]),
+                                     np.array([speed]), p)[0])):
+            pose, (v, w), driven = np.zeros(3), velocity, []
+            for k in range(len(path) * per_sample):
+                command = command_of(pose)
+                v += np.clip(command[0] - v, -p.max_accel * period, p.max_accel * period)
+                w += np.clip(command[1] - w, -p.max_alpha * period, p.max_alpha * period)
+                pose = integrate_unicycle(pose, v, w, period)
+                if (k + 1) % per_sample == 0:
+                    driven.append(pose[:2])
+            assert np.max(np.hypot(*(path - np.array(driven)).T)) < 0.005
 
 
 def test_evasion_keeps_room_for_a_person_ahead_to_turn_round():

@@ -12,8 +12,11 @@ collision avoidance", IEEE Robotics & Automation Magazine 4(1), 1997).
 
 Rollout
     The robot holds a target ``(v, omega)``, reached from the measured
-    velocity within ``max_accel`` and ``max_alpha`` (unicycle, Euler steps of
-    :data:`ROLLOUT_STEP` over :data:`HORIZON`). Each tracked obstacle goes on
+    velocity within ``max_accel`` and ``max_alpha``, one control period at a
+    time as the controller's commands will take it (each period's command
+    held for the period, the unicycle's chord taken at the period's middle
+    heading; positions kept every :data:`ROLLOUT_STEP` over
+    :data:`HORIZON`, within millimetres of the simulated robot). Each tracked obstacle goes on
     at its velocity with its radius grown by :data:`UNCERTAINTY_RATE` per
     second of look-ahead (it may turn: a random walk, a bounce, the end of a
     waypoint leg).
@@ -53,7 +56,10 @@ Evasion
     horizon. Only the candidates within :data:`RISK_TOLERANCE` of the
     least contact risk stay; of them, those that do not reverse and
     keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
-    motion are preferred when there are any; then the latest predicted
+    motion are preferred when there are any, and of them those that do not
+    turn back (lose no ground along the desired direction, or at most
+    :data:`TURN_BACK_SLACK` on a brisk arc clear of the grown obstacles: going
+    round a person); then the latest predicted
     contact wins, then the least intrusion into the margin (its time
     integral [m s]), then the most progress along the desired direction,
     then the turn rate nearest the controller's. An :class:`Evader` (the
@@ -100,7 +106,8 @@ from fusion_planner.core.local_planning.local_geometry import held_before, point
 #: speed closes a metre.
 HORIZON = 2.4
 
-#: Time step of the rollouts [s]: coarse enough to keep the check cheap. A
+#: Time between the rollouts' samples [s] (they are integrated one control
+#: period at a time): coarse enough to keep the check cheap. A
 #: robot and an obstacle closing at 1.2 m/s (the generated scenarios' top
 #: speeds) come 0.24 m closer per step, a third of their smallest combined
 #: diameter, so no contact falls between samples.
@@ -143,6 +150,15 @@ YIELD_SAFE_TIME = 1.0
 #: robot that switches every period between backing away and waiting beside
 #: them neither waits nor gets away.
 BACKING_YIELD_MARGIN = 0.07
+
+#: A yielding evasion that keeps clear of the grown obstacles over the whole
+#: horizon at :data:`ASIDE_SPEED_FRACTION` of ``max_speed`` or more may lose
+#: this much ground [m] along the desired direction: a brisk arc round a
+#: person is not turning back (a slow one or a turn on the spot can be).
+TURN_BACK_SLACK = 0.15
+
+#: See :data:`TURN_BACK_SLACK`.
+ASIDE_SPEED_FRACTION = 0.5
 
 #: Target speeds of the evasive fan, as fractions of ``max_speed`` (forward)
 #: and of :meth:`FollowerParams.reverse_speed` (reverse).
@@ -221,6 +237,28 @@ def _targets(params):
     return np.column_stack([v.ravel(), w.ravel()])
 
 
+def _control_steps(params):
+    """Control periods per rollout step, and their length [s].
+
+    The rollouts follow the robot period by period, as the controller's
+    commands will move it (each held for one ``control_period``, the one-step
+    limits applied); positions are kept every :data:`ROLLOUT_STEP`.
+    """
+    count = max(1, int(round(ROLLOUT_STEP / params.control_period)))
+    return count, ROLLOUT_STEP / count
+
+
+def _advance(x, y, yaw, v, omega, period):
+    """Unicycle poses after ``period`` [s] at ``v, omega`` held (arrays of equal shape).
+
+    The chord of the arc: its direction is the heading half-way through the
+    period (exact for the direction; its length differs from ``v * period``
+    by less than 0.2 % while ``|omega| * period <= 0.2``).
+    """
+    mid = yaw + 0.5 * omega * period
+    return x + v * np.cos(mid) * period, y + v * np.sin(mid) * period, yaw + omega * period
+
+
 def rollout(pose, velocity, targets, params):
     """Robot positions holding each target command, within the acceleration limits.
 
@@ -233,21 +271,24 @@ def rollout(pose, velocity, targets, params):
     targets : ndarray, shape (C, 2)
         Target ``v, omega`` [m/s, rad/s].
     params : FollowerParams
-        ``max_accel`` and ``max_alpha`` bound the ramps.
+        ``max_accel`` and ``max_alpha`` bound the ramps, one
+        ``control_period`` at a time.
 
     Returns
     -------
     ndarray, float64, shape (C, T, 2)
         Positions [m] at ``ROLLOUT_STEP, 2 ROLLOUT_STEP, ..., HORIZON``.
     """
-    times = _times()
+    count, period = _control_steps(params)
+    times = period * np.arange(1, len(_times()) * count + 1)   # each command's period ends here
     v0, w0 = velocity
     v = v0 + np.clip(targets[:, :1] - v0, -params.max_accel * times, params.max_accel * times)
     w = w0 + np.clip(targets[:, 1:] - w0, -params.max_alpha * times, params.max_alpha * times)
-    yaw = pose[2] + np.cumsum(w, axis=1) * ROLLOUT_STEP
-    x = pose[0] + np.cumsum(v * np.cos(yaw), axis=1) * ROLLOUT_STEP
-    y = pose[1] + np.cumsum(v * np.sin(yaw), axis=1) * ROLLOUT_STEP
-    return np.stack([x, y], axis=-1)
+    yaw = pose[2] + np.cumsum(w, axis=1) * period
+    mid = yaw - 0.5 * w * period
+    x = pose[0] + np.cumsum(v * np.cos(mid), axis=1) * period
+    y = pose[1] + np.cumsum(v * np.sin(mid), axis=1) * period
+    return np.stack([x, y], axis=-1)[:, count - 1::count]
 
 
 def pivot_command(yaw, headings, speeds, params):
@@ -277,15 +318,15 @@ def pivot_rollout(pose, velocity, headings, speeds, params):
     yaw = np.full(len(headings), pose[2])
     v = np.full(len(headings), velocity[0])
     w = np.full(len(headings), velocity[1])
-    dv, dw = params.max_accel * ROLLOUT_STEP, params.max_alpha * ROLLOUT_STEP
+    count, period = _control_steps(params)
+    dv, dw = params.max_accel * period, params.max_alpha * period
     out = []
     for _ in _times():
-        target = pivot_command(yaw, headings, speeds, params)
-        v = v + np.clip(target[:, 0] - v, -dv, dv)
-        w = w + np.clip(target[:, 1] - w, -dw, dw)
-        yaw = yaw + w * ROLLOUT_STEP
-        x = x + v * np.cos(yaw) * ROLLOUT_STEP
-        y = y + v * np.sin(yaw) * ROLLOUT_STEP
+        for _ in range(count):
+            target = pivot_command(yaw, headings, speeds, params)
+            v = v + np.clip(target[:, 0] - v, -dv, dv)
+            w = w + np.clip(target[:, 1] - w, -dw, dw)
+            x, y, yaw = _advance(x, y, yaw, v, w, period)
         out.append(np.column_stack([x, y]))
     return np.stack(out, axis=1)
 
@@ -498,7 +539,8 @@ def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=N
     and keep :data:`YIELD_MARGIN` from the obstacles' predicted (not grown)
     motion and clear of the grown ones for :data:`YIELD_SAFE_TIME`, the
     choice is among those, and among those of them that do not
-    lose ground along ``desired`` if there are any: the robot yields (waits,
+    lose ground along ``desired`` (or little, going round the person: see
+    :data:`TURN_BACK_SLACK`) if there are any: the robot yields (waits,
     or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
     obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
@@ -562,11 +604,14 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     margin = BACKING_YIELD_MARGIN if backing else YIELD_MARGIN
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
         & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= margin, axis=1)
+    contact = _first(gaps < 0.0)
     if np.any(yielding):
         allowed = yielding
-        if np.any(yielding & (progress >= 0.0)):
-            allowed = yielding & (progress >= 0.0)  # wait or go on; do not turn back
-    contact = _first(gaps < 0.0)
+        brisk = targets[:, 0] >= ASIDE_SPEED_FRACTION * params.max_speed
+        aside = brisk & (contact == gaps.shape[1]) & (progress >= -TURN_BACK_SLACK)
+        onward = yielding & ((progress >= 0.0) | aside)
+        if np.any(onward):
+            allowed = onward  # wait or go on; do not turn back
     intrusion = np.maximum(MOVING_MARGIN - gaps, 0.0).sum(axis=1) * ROLLOUT_STEP
     best = allowed & (contact == np.max(contact[allowed]))
     if kept_index is not None and best[kept_index] \
