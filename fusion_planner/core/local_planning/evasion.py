@@ -284,10 +284,10 @@ def rollout(pose, velocity, targets, params):
     v0, w0 = velocity
     v = v0 + np.clip(targets[:, :1] - v0, -params.max_accel * times, params.max_accel * times)
     w = w0 + np.clip(targets[:, 1:] - w0, -params.max_alpha * times, params.max_alpha * times)
-    yaw = pose[2] + np.cumsum(w, axis=1) * period
-    mid = yaw - 0.5 * w * period
-    x = pose[0] + np.cumsum(v * np.cos(mid), axis=1) * period
-    y = pose[1] + np.cumsum(v * np.sin(mid), axis=1) * period
+    start_yaw = pose[2] + (np.cumsum(w, axis=1) - w) * period     # heading as each period starts
+    dx, dy, _ = _advance(0.0, 0.0, start_yaw, v, w, period)
+    x = pose[0] + np.cumsum(dx, axis=1)
+    y = pose[1] + np.cumsum(dy, axis=1)
     return np.stack([x, y], axis=-1)[:, count - 1::count]
 
 
