@@ -40,11 +40,14 @@ def scan_of(grid, origin, centres, radius=RADIUS):
     return ranges
 
 
-def run(tracker, grid, origin, positions):
-    """Feed scans of walkers at ``positions`` (T, K, 2), one every DT; reports per step."""
+def run(tracker, grid, origin, positions, radius=RADIUS):
+    """Feed scans of walkers at ``positions`` (T, K, 2), one every DT; reports per step.
+
+    ``radius`` [m]: of every walker, or one per walker (K,).
+    """
     reports = []
     for k, centres in enumerate(positions):
-        verdict = tracker.update(ANGLES, scan_of(grid, origin, centres), origin, k * DT)
+        verdict = tracker.update(ANGLES, scan_of(grid, origin, centres, radius), origin, k * DT)
         assert verdict.accepted, verdict.reason
         reports.append(tracker.report())
     return reports
@@ -316,6 +319,56 @@ def test_two_walkers_side_by_side_are_two_tracks():
         assert min(abs(py - 9.7), abs(py - 10.3)) < 0.15
         assert math.hypot(vx + 0.5, vy) < 0.2
         assert radius < 0.45
+
+
+def test_two_walkers_who_fall_in_side_by_side_nearly_in_line_keep_their_tracks():
+    """Seen from the laser one is partly behind the other: one run without a notch.
+
+    The geometry of `crossing-2636032383`, where both tracks died and the robot drove
+    into the pair: the run is wider than any object, so unless the tracks cut it apart
+    it is static structure.
+    """
+    grid = open_map()
+    origin = np.array([5.0, 10.0, 0.0])
+    t = np.arange(30) * DT
+    near = np.stack([np.full_like(t, 5.82), 7.9 + 0.48 * t], axis=1)
+    # the farther one closes in from the side, then walks beside the nearer
+    far = np.stack([6.43 + 0.3 * np.maximum(0.0, 1.2 - t), 8.02 + 0.48 * t], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, np.stack([near, far], axis=1))
+    ids = reports[8].ids.tolist()
+    assert len(ids) == 2
+    for k, report in enumerate(reports[8:], start=8):
+        assert report.ids.tolist() == ids, k
+        for walker in (near[k], far[k]):
+            gaps = np.hypot(*(report.states[:, 0:2] - walker).T)
+            assert gaps.min() < 0.1, (k, report.states)
+    for (x, y, vx, vy) in reports[-1].states:
+        assert math.hypot(vx, vy - 0.48) < 0.15
+
+
+def test_a_fast_walker_who_comes_out_from_behind_a_slow_one_leaves_both_tracks():
+    """The two make one run without a notch (the nearer one's edge, then the farther one).
+
+    The geometry of `fast-obstacle-3250530926`: the run, 1.3-1.9 times the size of either
+    track, was taken by the nearer track (within the size gate) or was a new object, and the
+    slow walker's track was lost for 1.5 s; the robot drove at them when they parted.
+    """
+    grid = open_map()
+    origin = np.array([5.0, 3.9, 0.0])
+    t = np.arange(45) * DT
+    slow = np.stack([np.full_like(t, 5.76), 5.5 - 0.35 * t], axis=1)
+    fast = np.stack([7.5 - 0.8 * t, np.full_like(t, 4.93)], axis=1)
+    walkers = np.stack([slow, fast], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, walkers, radius=np.array([0.24, 0.32]))
+    ids = sorted(reports[8].ids.tolist())
+    assert len(ids) == 2
+    for k, report in enumerate(reports[8:], start=8):
+        assert sorted(report.ids.tolist()) == ids, k
+        for walker in walkers[k]:
+            assert np.hypot(*(report.states[:, 0:2] - walker).T).min() < 0.2, (k, report.states)
+    for walker, velocity in ((slow[-1], (0.0, -0.35)), (fast[-1], (-0.8, 0.0))):
+        state = reports[-1].states[np.argmin(np.hypot(*(reports[-1].states[:, 0:2] - walker).T))]
+        assert math.hypot(state[2] - velocity[0], state[3] - velocity[1]) < 0.15
 
 
 def test_range_noise_does_not_cut_a_walker_in_two():

@@ -24,7 +24,10 @@ Check
     A command is safe when its rollout keeps :data:`MOVING_MARGIN` from
     every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
     it also from each obstacle walking back at its speed (a person ahead may
-    turn round; :func:`turning_round`), and when its *contact risk* is at
+    turn round), and from each obstacle deflected by another it is about to
+    meet (people do not walk through each other: from the moment their
+    predicted discs touch, its velocity reflected about the line of their
+    centres; :func:`hypotheses`), and when its *contact risk* is at
     most :data:`RISK_LIMIT`: over sampled futures in which each obstacle
     keeps its speed and its heading diffuses as the tracker measured
     (``turn_stds``; :data:`TURN_STD` if unknown;
@@ -331,7 +334,8 @@ def pivot_rollout(pose, velocity, headings, speeds, params):
     return np.stack(out, axis=1)
 
 
-def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, until=None):
+def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, since=None,
+                  until=None):
     """Gap [m] between each rollout sample and the nearest predicted, grown tracked obstacle.
 
     Parameters
@@ -344,9 +348,10 @@ def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, until=N
         [m].
     growth : float
         Growth of the obstacles' radii [m/s] over the look-ahead.
-    until : ndarray, shape (K,), optional
-        Look-ahead [s] over which each obstacle counts (later samples do
-        not see it); default the whole horizon for every one.
+    since, until : ndarray, shape (K,), optional
+        Look-ahead [s] from which and up to which each obstacle counts
+        (other samples do not see it); default the whole horizon for every
+        one.
 
     Returns
     -------
@@ -360,31 +365,81 @@ def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, until=N
     dy = paths[:, :, 1:2] - (tracked[:, 1] + times * tracked[:, 3])
     reach = robot_radius + tracked[:, 4] + growth * times                      # (T, K)
     gaps = np.sqrt(dx * dx + dy * dy) - reach
+    if since is not None:
+        gaps = np.where(times >= since - CLEARANCE_EPS, gaps, math.inf)
     if until is not None:
         gaps = np.where(times <= until + CLEARANCE_EPS, gaps, math.inf)
     return gaps.min(axis=2)
 
 
-def turning_round(tracked):
-    """Each tracked obstacle as it goes on and as it would walk back.
+def hypotheses(tracked, others):
+    """Each tracked obstacle as it goes on, as it would walk back, and as another deflects it.
 
     Parameters
     ----------
     tracked : ndarray, shape (K, 5)
-        ``x, y, vx, vy, radius``.
+        ``x, y, vx, vy, radius`` of the obstacles near the robot.
+    others : ndarray, shape (N, 5)
+        Every tracked obstacle (``tracked`` among them), any of which may
+        meet one of ``tracked``.
 
     Returns
     -------
-    movers : ndarray, shape (2K, 5)
-        ``tracked``, then the same rows with the velocity reversed.
-    until : ndarray, shape (2K,)
-        Look-ahead [s] each counts for: the whole horizon, then
-        :data:`TURN_ROUND_HORIZON`.
+    movers : ndarray, shape (2K + D, 5)
+        ``tracked``; the same rows with the velocity reversed; then each of
+        the ``D`` obstacles of ``tracked`` that meets another within the
+        horizon, as it goes on after the first such meeting (its velocity
+        reflected about the line of their centres, the row's position set
+        back so that ``x + t vx`` passes where they meet).
+    since, until : ndarray, shape (2K + D,)
+        Look-ahead [s] from which and up to which each counts: the whole
+        horizon, then up to :data:`TURN_ROUND_HORIZON`, then from the
+        meeting.
     """
+    meeting, normal = _meetings(tracked, others)
+    into = np.sum(tracked[:, 2:4] * normal, axis=1)          # < 0: walking into the other
+    deflected = np.flatnonzero((meeting <= HORIZON) & (into < 0.0))
+    velocity = tracked[deflected, 2:4]
+    after = tracked[deflected].copy()
+    after[:, 2:4] = velocity - 2.0 * into[deflected, None] * normal[deflected]
+    met = meeting[deflected][:, None]
+    after[:, 0:2] += met * (velocity - after[:, 2:4])
     back = tracked.copy()
     back[:, 2:4] *= -1.0
-    until = np.repeat([HORIZON, TURN_ROUND_HORIZON], len(tracked))
-    return np.vstack([tracked, back]), until
+    count = len(tracked)
+    since = np.concatenate([np.zeros(2 * count), meeting[deflected]])
+    until = np.concatenate([np.full(count, HORIZON), np.full(count, TURN_ROUND_HORIZON),
+                            np.full(len(deflected), HORIZON)])
+    return np.vstack([tracked, back, after]), since, until
+
+
+def _meetings(tracked, others):
+    """When [s] each of ``tracked`` (K, 5) first meets one of ``others`` (N, 5), and the normal.
+
+    Both go on at constant velocity; they meet when their discs touch while
+    closing (``inf`` when never, 0 when they already touch). The normal
+    ``(K, 2)`` is the unit vector from the other's centre to this one's then.
+    An obstacle does not meet itself (nor a row of ``others`` at its centre).
+    """
+    offset = tracked[:, None, 0:2] - others[None, :, 0:2]                     # (K, N, 2)
+    closing = tracked[:, None, 2:4] - others[None, :, 2:4]
+    reach = tracked[:, None, 4] + others[None, :, 4]
+    a = np.sum(closing * closing, axis=-1)
+    b = np.sum(offset * closing, axis=-1)
+    c = np.sum(offset * offset, axis=-1) - reach ** 2
+    distinct = np.sum(offset * offset, axis=-1) > CLEARANCE_EPS
+    with np.errstate(invalid='ignore', divide='ignore'):
+        root = (-b - np.sqrt(b * b - a * c)) / a
+    time = np.where(c <= 0.0, 0.0, root)
+    meets = distinct & (b < 0.0) & np.isfinite(time) & (time >= 0.0)
+    time = np.where(meets, time, np.inf)
+    first = np.argmin(time, axis=1)
+    rows = np.arange(len(tracked))
+    when = time[rows, first]
+    apart = offset[rows, first] + np.where(np.isfinite(when), when, 0.0)[:, None] \
+        * closing[rows, first]
+    length = np.maximum(np.hypot(apart[:, 0], apart[:, 1]), CLEARANCE_EPS)
+    return when, apart / length[:, None]
 
 
 def static_clearance(q, paths, walls, robot_radius):
@@ -559,20 +614,20 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     """
     q = pose[:2]
     relevant = _relevant(q, tracked, params)
-    tracked = tracked[relevant]
+    everyone, tracked = tracked, tracked[relevant]
     if len(tracked) == 0:
         return command[0], command[1], False, None
     turn_stds = np.full(len(relevant), np.nan) if turn_stds is None \
         else np.asarray(turn_stds, float)
     turn_stds = np.where(np.isfinite(turn_stds), turn_stds, TURN_STD)[relevant]
-    movers, until = turning_round(tracked)
+    movers, since, until = hypotheses(tracked, everyone)
     walls = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
     futures = walker_futures.sample_futures(tracked, _times(), turn_stds, walls)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
     ahead = rollout(pose, velocity, nominal, params)
-    safe = np.min(obstacle_gaps(ahead, movers, radius, until=until)) >= MOVING_MARGIN \
-        and _risk(ahead, futures, tracked, radius)[0] <= RISK_LIMIT
+    safe = np.min(obstacle_gaps(ahead, movers, radius, since=since, until=until)) \
+        >= MOVING_MARGIN and _risk(ahead, futures, tracked, radius)[0] <= RISK_LIMIT
     if safe and not _cornered(q, ahead, tracked, points, params)[0]:
         return command[0], command[1], False, None
     fan = np.vstack([nominal, _targets(params)])
@@ -591,7 +646,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     if not np.any(allowed):
         allowed = blocked == np.max(blocked)
     paths = held_before(paths, q, blocked)
-    gaps = obstacle_gaps(paths, movers, radius, until=until)
+    gaps = obstacle_gaps(paths, movers, radius, since=since, until=until)
     progress = (paths[:, -1] - q) @ desired
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
     with_way_out = _with_way_out(allowed, q, paths, gaps, tracked, points, params)
@@ -603,7 +658,8 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     allowed &= risk <= np.min(risk[allowed]) + RISK_TOLERANCE
     margin = BACKING_YIELD_MARGIN if backing else YIELD_MARGIN
     yielding = (targets[:, 0] >= 0.0) & allowed & np.all(gaps[:, :soon] >= 0.0, axis=1) \
-        & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, until=until) >= margin, axis=1)
+        & np.all(obstacle_gaps(paths, movers, radius, growth=0.0, since=since,
+                                   until=until) >= margin, axis=1)
     contact = _first(gaps < 0.0)
     if np.any(yielding):
         allowed = yielding

@@ -7,10 +7,13 @@ whose hit points lie close together (a range jump or an explained or missing
 return ends a run). A run is also cut where its range peaks between two
 nearer stretches (the notch between two people side by side: a convex object
 never shows one). Each run is an object candidate with a centre, a radius
-and its angular extent.
+and its angular extent. Given the circles of objects already known (a
+tracker's predictions), :func:`split_among` cuts a run that holds returns of
+two or more of them into one part per object.
 
-Everything is one numpy pass over the beams; nothing loops over beams or
-objects.
+Everything is a fixed number of numpy passes over the beams; nothing loops
+over beams or objects (the refit of known circles iterates a fixed
+:data:`FIT_ITERATIONS` times).
 
 Frames and units: hit points and centres in the map frame [m]; beam angles
 in the laser frame [rad], counter-clockwise, in scan order.
@@ -39,6 +42,12 @@ from scipy.signal import find_peaks
 #: Cap on the sine of a run's half angle in the circle estimate (a run this
 #: wide is far larger than any tracked object anyway).
 MAX_HALF_ANGLE_SIN = 0.9
+#: Standard deviations [m] of a return about its circle and of a known
+#: circle's predicted centre, and Gauss-Newton iterations, in the refit of
+#: known circles to the parts of a shared candidate (:func:`split_among`).
+RETURN_STD = 0.02
+PRIOR_STD = 0.1
+FIT_ITERATIONS = 4
 #: Range [m] that stands for "no return" in the notch search: higher than any return.
 _WALL = 1e9
 
@@ -227,6 +236,144 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, 
     return Segments(centers=centers[keep], radii=radii[keep], counts=count[keep],
                     occluded=occluded[keep], unexplained=unexplained,
                     labels=renumber[label[own]])
+
+
+def split_among(segments, origin, centers, radii, reach, min_points, beam_spacing, widest,
+                merge_ratio):
+    """Cut each candidate that holds returns of two or more known objects into one per object.
+
+    Two people side by side, seen nearly in line from the laser, join into
+    one run without a notch (the farther one's visible edge lies within
+    ``split_depth`` of its own nearest return), and so does one coming out
+    from behind another (the nearer one's edge, then the farther one): one
+    candidate too large for either. Known circles (a tracker's predicted
+    tracks) cut it apart again.
+
+    Parameters
+    ----------
+    segments : Segments
+        From :func:`segment_scan`.
+    origin : ndarray, shape (3,)
+        Laser pose ``(x, y, yaw)``, map frame.
+    centers : ndarray, shape (K, 2)
+        Centres [m] of the known objects, map frame.
+    radii : ndarray, shape (K,)
+        Their radii [m].
+    reach : float
+        A return within this distance [m] of a circle's edge may be its object's.
+    min_points : int
+        Parts with fewer returns are dropped.
+    beam_spacing : float
+        Angle between adjacent beams [rad].
+    widest : float
+        Candidates of a larger radius [m] are too wide to be one object.
+    merge_ratio : float
+        So are candidates more than this many times larger than every circle
+        whose returns they hold: a merge. Only such candidates are cut; a
+        person beside a small box, tracked as one object of the box's and the
+        person's size, stays one.
+
+    Returns
+    -------
+    Segments
+        A candidate too wide (see ``widest``) with returns within ``reach``
+        of two or more circles is
+        replaced by one part per circle (the returns nearest that circle's
+        edge; returns within reach of none form one more part). A circle's
+        part is that circle refitted to its returns (:func:`_refit`: its
+        radius kept; partly hidden or not, its centre is unbiased), occluded
+        only if the candidate was; the rest is taken for a circle as in
+        :func:`segment_scan`, occluded unless nearest the laser. Other
+        candidates are kept as they were, in order, before the parts.
+    """
+    labelled = np.flatnonzero(segments.labels >= 0)
+    count = len(segments.counts)
+    if len(centers) < 2 or not len(labelled):
+        return segments
+    points, label = segments.unexplained[labelled], segments.labels[labelled]
+    edge = np.hypot(points[:, None, 0] - centers[:, 0], points[:, None, 1] - centers[:, 1]) - radii
+    near = edge <= reach                                                       # (P, K)
+    touched = np.zeros((count, len(centers)), bool)
+    np.logical_or.at(touched, label, near)
+    largest = np.max(np.where(touched, radii, 0.0), axis=1)
+    too_wide = segments.radii > np.minimum(widest, merge_ratio * largest)
+    shared = (touched.sum(axis=1) >= 2) & too_wide
+    inside = shared[label]
+    if not inside.any():
+        return segments
+    cost = np.where(touched[label] & near, edge, np.inf)
+    owner = np.where(np.isfinite(cost.min(axis=1)), cost.argmin(axis=1), len(centers))
+    # one part per (candidate, circle); len(centers) stands for "no circle"
+    keys, part_of = np.unique(label[inside] * (len(centers) + 1) + owner[inside],
+                              return_inverse=True)
+    parts = len(keys)
+    parent = keys // (len(centers) + 1)
+    sight = points[inside] - origin[:2]
+    ranges = np.hypot(sight[:, 0], sight[:, 1])
+    # bearings relative to each part's first return (a part spans far less than pi)
+    bearing = np.arctan2(sight[:, 1], sight[:, 0])
+    first = np.full(parts, len(bearing))
+    np.minimum.at(first, part_of, np.arange(len(bearing)))
+    relative = np.angle(np.exp(1j * (bearing - bearing[first][part_of])))
+    low, high, nearest = np.full(parts, np.inf), np.full(parts, -np.inf), np.full(parts, np.inf)
+    np.minimum.at(low, part_of, relative)
+    np.maximum.at(high, part_of, relative)
+    np.minimum.at(nearest, part_of, ranges)
+    counts = np.bincount(part_of, minlength=parts)
+    half_sin = np.minimum(np.sin(0.5 * (high - low + beam_spacing)), MAX_HALF_ANGLE_SIN)
+    part_radii = nearest * half_sin / (1.0 - half_sin)
+    middle = bearing[first] + 0.5 * (low + high)
+    part_centers = origin[:2] + np.stack([np.cos(middle), np.sin(middle)], axis=1) \
+        * (nearest + part_radii)[:, None]
+    closest = np.full(count, np.inf)
+    np.minimum.at(closest, parent, nearest)
+    part_occluded = segments.occluded[parent] | (nearest > closest[parent])
+    # a part of a known circle: that circle refitted to its returns, hidden or not
+    circle = keys % (len(centers) + 1)
+    known = circle < len(centers)
+    on_known = known[part_of]
+    renamed = np.cumsum(known) - 1
+    part_centers[known] = _refit(points[inside][on_known], renamed[part_of[on_known]],
+                                 centers[circle[known]], radii[circle[known]])
+    part_radii[known] = radii[circle[known]]
+    part_occluded[known] = segments.occluded[parent[known]]
+    kept = np.flatnonzero(~shared)
+    keep_part = counts >= min_points
+    renumber = np.full(count + parts, -1)
+    renumber[kept] = np.arange(len(kept))
+    renumber[count + np.flatnonzero(keep_part)] = len(kept) + np.arange(keep_part.sum())
+    full = label.copy()
+    full[inside] = count + part_of
+    labels = segments.labels.copy()
+    labels[labelled] = renumber[full]
+    return Segments(
+        centers=np.vstack([segments.centers[kept], part_centers[keep_part]]),
+        radii=np.concatenate([segments.radii[kept], part_radii[keep_part]]),
+        counts=np.concatenate([segments.counts[kept], counts[keep_part]]),
+        occluded=np.concatenate([segments.occluded[kept], part_occluded[keep_part]]),
+        unexplained=segments.unexplained, labels=labels)
+
+
+def _refit(points, part_of, start, radius):
+    """Centres ``(Q, 2)`` [m] of circles of known ``radius`` (Q,) through each part's returns.
+
+    Gauss-Newton on the returns' distances from the circle (standard
+    deviation :data:`RETURN_STD`) and the centre's distance from ``start``
+    (:data:`PRIOR_STD`): the few returns of a partly hidden person fix its
+    centre along the line of sight, the prediction the rest.
+    """
+    centre = start.astype(float)
+    for _ in range(FIT_ITERATIONS):
+        offset = points - centre[part_of]
+        distance = np.maximum(np.hypot(offset[:, 0], offset[:, 1]), 1e-9)
+        unit = offset / distance[:, None]
+        residual = distance - radius[part_of]
+        normal = np.tile(np.eye(2) / PRIOR_STD ** 2, (len(centre), 1, 1))
+        np.add.at(normal, part_of, unit[:, :, None] * unit[:, None, :] / RETURN_STD ** 2)
+        pull = (start - centre) / PRIOR_STD ** 2
+        np.add.at(pull, part_of, unit * residual[:, None] / RETURN_STD ** 2)
+        centre = centre + np.linalg.solve(normal, pull[:, :, None])[:, :, 0]
+    return centre
 
 
 def _notches(ranges, own, linked, depth):

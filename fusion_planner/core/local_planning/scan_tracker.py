@@ -6,8 +6,15 @@ controller avoids (:attr:`Observation.tracked`):
 1. **Map explanation and segmentation** (:mod:`scan_segments`): returns on the
    known map are dropped, the rest cut into object candidates (centre,
    radius) by beam adjacency, range jumps and notches (two people shoulder
-   to shoulder). Candidates wider than
-   ``max_object_radius`` are static structure and are not tracked.
+   to shoulder). A candidate with returns near two or more confirmed
+   tracks' predicted circles (within ``cluster_gap`` of their edges) that
+   is more than :data:`MERGE_RATIO` times larger than each of them, or
+   wider than ``max_object_radius``, is cut into one part per track
+   (:func:`scan_segments.split_among`): two people side by side seen
+   nearly in line, or one coming out from behind another, show no notch,
+   and the one candidate they make would be taken by one track (swinging
+   its velocity) or by none (leaving both to die). Other candidates wider
+   than ``max_object_radius`` are static structure and are not tracked.
 2. **Prediction**: every track is a constant-velocity Kalman filter (state
    ``x, y, vx, vy``, white-noise acceleration of ``acceleration_std``),
    predicted to the scan's time.
@@ -106,10 +113,15 @@ from scipy.optimize import linear_sum_assignment
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.hit_ages import HitAges
-from fusion_planner.core.local_planning.scan_segments import map_explained_mask, segment_scan
+from fusion_planner.core.local_planning.scan_segments import (
+    map_explained_mask, segment_scan, split_among)
 
 #: A candidate with at least this fraction of its returns in old cells stays put.
 STATIC_FRACTION = 0.5
+#: A candidate with returns near two or more confirmed tracks and more than
+#: this many times larger than each of them is their merge, and is cut apart
+#: (:func:`scan_segments.split_among`).
+MERGE_RATIO = 1.2
 #: Cost of a forbidden (gated out) pairing in the assignment; any gated-in
 #: cost is below ``gate``.
 FORBIDDEN_COST = 1e9
@@ -356,6 +368,11 @@ class ScanTracker:
         p = self.params
         segments = segment_scan(angles, ranges, origin, self.grid, self._explained,
                                 p.cluster_gap, p.min_points, p.split_depth)
+        confirmed = self._hits >= p.confirm_hits
+        spacing = float(np.median(np.abs(np.diff(angles)))) if len(angles) > 1 else 0.0
+        segments = split_among(segments, origin, self._x[confirmed, 0:2],
+                               self._radius[confirmed], p.cluster_gap, p.min_points, spacing,
+                               p.max_object_radius, MERGE_RATIO)
         staying = self._staying(segments)
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
