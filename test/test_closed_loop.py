@@ -52,6 +52,8 @@ SIM_TIME_LIMIT_S = 60.0
 WALL_LIMIT_S = 50.0
 #: Wall time a node process gets to exit on SIGINT [s].
 SIGINT_TIMEOUT_S = 10.0
+#: How long [s] a process that did not stop is given to print its stacks.
+STACK_DUMP_WAIT_S = 3.0
 
 
 # -- scenario files -----------------------------------------------------------------
@@ -155,6 +157,7 @@ class Run:
                                              self.recorder, self.scenario.goal)
             env = dict(os.environ)
             env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(REPO), env.get('PYTHONPATH')]))
+            env['PYTHONFAULTHANDLER'] = '1'  # a node that hangs prints its stacks (sigint_and_wait)
             self.procs = start_node_processes(self.params, ros_args, log_dir, env)
         for node in self.nodes:
             self.executor.add_node(node)
@@ -220,7 +223,12 @@ def start_node_processes(params, ros_args, log_dir, env):
 
 
 def sigint_and_wait(procs):
-    """SIGINT every process; returns ``{name: (exit code, log text)}`` (kills stragglers)."""
+    """SIGINT every process; returns ``{name: (exit code, log text)}`` (kills stragglers).
+
+    A straggler gets SIGABRT first: with ``PYTHONFAULTHANDLER`` set, Python prints every
+    thread's stack into its log, which the failing assertion shows (a node that once did
+    not stop within 10 s of SIGINT in CI left no clue of where it was).
+    """
     for _, proc, _ in procs:
         if proc.poll() is None:
             proc.send_signal(signal.SIGINT)
@@ -229,7 +237,11 @@ def sigint_and_wait(procs):
         try:
             code = proc.wait(timeout=SIGINT_TIMEOUT_S)
         except subprocess.TimeoutExpired:
-            proc.kill()
+            proc.send_signal(signal.SIGABRT)
+            try:
+                proc.wait(timeout=STACK_DUMP_WAIT_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
             code = f'killed after {SIGINT_TIMEOUT_S} s'
             proc.wait()
         out[name] = (code, log_path.read_text(errors='replace'))
