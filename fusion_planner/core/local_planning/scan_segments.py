@@ -223,12 +223,9 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, 
         label = np.where(label == len(first), 0, label)
     nearest = np.full(len(first), np.inf)
     np.minimum.at(nearest, label[own], ranges[own])
-    # the circle seen under the run's angle from its nearest return
-    half_sin = np.minimum(np.sin(0.5 * count * beam_spacing), MAX_HALF_ANGLE_SIN)
-    radii = nearest * half_sin / (1.0 - half_sin)
     sight = 0.5 * (points[first] + points[last]) - origin[:2]
     direction = sight / np.maximum(np.hypot(*sight.T), 1e-9)[:, None]
-    centers = origin[:2] + direction * (nearest + radii)[:, None]
+    centers, radii = _circles_seen(origin, 0.5 * count * beam_spacing, nearest, direction)
     occluded = _nearer_beside(ranges, first - 1, first, gap, full_circle) \
         | _nearer_beside(ranges, last + 1, last, gap, full_circle)
     keep = count >= min_points
@@ -320,11 +317,9 @@ def split_among(segments, origin, centers, radii, reach, min_points, beam_spacin
     np.maximum.at(high, part_of, relative)
     np.minimum.at(nearest, part_of, ranges)
     counts = np.bincount(part_of, minlength=parts)
-    half_sin = np.minimum(np.sin(0.5 * (high - low + beam_spacing)), MAX_HALF_ANGLE_SIN)
-    part_radii = nearest * half_sin / (1.0 - half_sin)
     middle = bearing[first] + 0.5 * (low + high)
-    part_centers = origin[:2] + np.stack([np.cos(middle), np.sin(middle)], axis=1) \
-        * (nearest + part_radii)[:, None]
+    part_centers, part_radii = _circles_seen(origin, 0.5 * (high - low + beam_spacing), nearest,
+                                             np.stack([np.cos(middle), np.sin(middle)], axis=1))
     closest = np.full(count, np.inf)
     np.minimum.at(closest, parent, nearest)
     part_occluded = segments.occluded[parent] | (nearest > closest[parent])
@@ -352,6 +347,18 @@ def split_among(segments, origin, centers, radii, reach, min_points, beam_spacin
         counts=np.concatenate([segments.counts[kept], counts[keep_part]]),
         occluded=np.concatenate([segments.occluded[kept], part_occluded[keep_part]]),
         unexplained=segments.unexplained, labels=labels)
+
+
+def _circles_seen(origin, half_angle, nearest, direction):
+    """Centres ``(C, 2)`` and radii ``(C,)`` [m] of circles seen from the laser.
+
+    Each is seen under twice ``half_angle`` [rad] with its nearest return
+    at range ``nearest`` [m], its centre along the unit ``direction``
+    ``(C, 2)`` (see :func:`segment_scan`, notes).
+    """
+    half_sin = np.minimum(np.sin(half_angle), MAX_HALF_ANGLE_SIN)
+    radii = nearest * half_sin / (1.0 - half_sin)
+    return origin[:2] + direction * (nearest + radii)[:, None], radii
 
 
 def _refit(points, part_of, start, radius):
