@@ -26,8 +26,9 @@ Check
     it also from each obstacle walking back at its speed (a person ahead may
     turn round), and from each obstacle deflected by another it is about to
     meet (people do not walk through each other: from the moment their
-    predicted discs touch, its velocity reflected about the line of their
-    centres; :func:`hypotheses`), and when its *contact risk* is at
+    predicted discs come within :data:`MEETING_MARGIN`, its velocity
+    reflected about the line of their centres; :func:`hypotheses`), and
+    when its *contact risk* is at
     most :data:`RISK_LIMIT`: over sampled futures in which each obstacle
     keeps its speed and its heading diffuses as the tracker measured
     (``turn_stds``; :data:`TURN_STD` if unknown;
@@ -128,6 +129,12 @@ UNCERTAINTY_RATE = 0.1
 #: checked walking back at its speed. Long enough for the robot to stop from
 #: its top speed; short enough not to hold it far behind a person it follows.
 TURN_ROUND_HORIZON = 1.0
+
+#: People give way a little before they would touch, and a prediction that
+#: has two of them pass within a few centimetres is as likely a meeting: two
+#: tracked obstacles whose predicted discs come within this [m] meet
+#: (:func:`hypotheses`).
+MEETING_MARGIN = 0.1
 
 #: Clearance [m] an evasive rollout must keep from static points (or the
 #: present clearance if that is smaller: never closer than now).
@@ -416,14 +423,15 @@ def hypotheses(tracked, others):
 def _meetings(tracked, others):
     """When [s] each of ``tracked`` (K, 5) first meets one of ``others`` (N, 5), and the normal.
 
-    Both go on at constant velocity; they meet when their discs touch while
-    closing (``inf`` when never, 0 when they already touch). The normal
+    Both go on at constant velocity; they meet when their discs come within
+    :data:`MEETING_MARGIN` while closing (``inf`` when never, 0 when they
+    already are). The normal
     ``(K, 2)`` is the unit vector from the other's centre to this one's then.
     An obstacle does not meet itself (nor a row of ``others`` at its centre).
     """
     offset = tracked[:, None, 0:2] - others[None, :, 0:2]                     # (K, N, 2)
     closing = tracked[:, None, 2:4] - others[None, :, 2:4]
-    reach = tracked[:, None, 4] + others[None, :, 4]
+    reach = tracked[:, None, 4] + others[None, :, 4] + MEETING_MARGIN
     a = np.sum(closing * closing, axis=-1)
     b = np.sum(offset * closing, axis=-1)
     c = np.sum(offset * offset, axis=-1) - reach ** 2

@@ -46,7 +46,12 @@ controller avoids (:attr:`Observation.tracked`):
    round walks back over the cells it has just hit),
    unless it has gone farther than ``max_object_radius`` from where it first
    appeared (no change of view moves a centre that far; a slow person keeps
-   hitting the same cells for a while). Everything else (static unknown
+   hitting the same cells for a while). While its returns stay put, a
+   track does not start moving (even coasting, unmatched, on the velocity
+   a changing view gave it), and a track born on returns that already stay
+   put starts as having stayed ``static_age``: a static object whose track
+   was lost (its candidate looked wider than ``max_object_radius`` for a
+   while) is not reborn as a mover. Everything else (static unknown
    obstacles, people standing still) stays scan points.
 6. **Tentative movers**: tracks matched ``confirm_hits`` times that are not
    (yet) moving, whose returns do not stay put, and whose estimated speed
@@ -330,7 +335,7 @@ class ScanTracker:
         self._moving = np.zeros(0, bool)
         self._tentative = np.zeros(0, bool)  # a tentative mover (module notes, step 6)
         self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
-        self._stays = np.zeros(0, bool)    # its returns stayed in old cells at its last match
+        self._stays = np.zeros(0, bool)    # its returns stayed put at its last match (step 5)
         self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
         self._turn_var = np.zeros(0)       # heading diffusion estimate [rad^2 / s]
         self._anchors = np.zeros((0, 2, 2))  # positions at the last two window ends [m]
@@ -385,20 +390,21 @@ class ScanTracker:
         # a partly hidden object's centre is biased: its track coasts, but lives on
         self._last_seen[track_of[matched & occluded]] = self.time
         # an object whose returns stay in the same cells is not moving, whatever
-        # its centre estimate does as the view changes; it must travel again
-        self._stays[track_of[matched]] = staying[matched]
-        since = self._staying_since[track_of[matched]]
-        self._staying_since[track_of[matched]] = np.where(staying[matched],
-                                                          np.minimum(since, self.time), np.inf)
-        still = track_of[matched & staying]
-        still = still[self.time - self._staying_since[still] >= p.stop_time]
-        still = still[np.hypot(*(self._x[still, 0:2] - self._origin[still]).T)
-                      <= p.max_object_radius]
+        # its centre estimate does as the view changes; it must travel again,
+        # unless it is farther from where it first appeared than any change of
+        # view moves a centre (a slow person keeps hitting the same cells)
+        seen = track_of[matched]
+        held = staying[matched] & (np.hypot(*(self._x[seen, 0:2] - self._origin[seen]).T)
+                                   <= p.max_object_radius)
+        self._stays[seen] = held
+        self._staying_since[seen] = np.where(held, np.minimum(self._staying_since[seen],
+                                                              self.time), np.inf)
+        still = seen[held & (self.time - self._staying_since[seen] >= p.stop_time)]
         self._moving[still] = False
         self._birth[still] = self._x[still, 0:2]
         self._drop_lost()
         born = ~matched & ~occluded
-        self._give_birth(centers[born], radii[born], origin[:2])
+        self._give_birth(centers[born], radii[born], staying[born], origin[:2])
         self._mark_moving()
         note = '' if np.isfinite(ranges).any() else 'no returns'
         return ScanVerdict(True, note)
@@ -540,13 +546,21 @@ class ScanTracker:
         if lost.any():
             self._keep(~lost)
 
-    def _give_birth(self, centers, radii, laser):
+    def _give_birth(self, centers, radii, staying, laser):
+        """Start tentative tracks on ``centers`` (N, 2) [m] of ``radii`` (N,) [m].
+
+        ``staying`` (N,): whose returns fall in old cells; such a candidate
+        has been where it is for at least ``static_age``, so its track starts
+        as having stayed that long (a static object whose track was lost,
+        e.g. while its candidate looked wider than ``max_object_radius``, is
+        not reborn as a mover when the changing view shifts its centre).
+        """
         room = self.params.max_tracks - len(self._x)
         if room <= 0 or not len(centers):
             return
         if len(centers) > room:
-            nearest = np.argsort(np.hypot(*(centers - laser).T), kind='stable')[:room]
-            centers, radii = centers[np.sort(nearest)], radii[np.sort(nearest)]
+            nearest = np.sort(np.argsort(np.hypot(*(centers - laser).T), kind='stable')[:room])
+            centers, radii, staying = centers[nearest], radii[nearest], staying[nearest]
         n = len(centers)
         x = np.zeros((n, 4))
         x[:, 0:2] = centers
@@ -565,8 +579,9 @@ class ScanTracker:
         self._moving = np.concatenate([self._moving, np.zeros(n, bool)])
         self._tentative = np.concatenate([self._tentative, np.zeros(n, bool)])
         self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
-        self._stays = np.concatenate([self._stays, np.zeros(n, bool)])
-        self._staying_since = np.concatenate([self._staying_since, np.full(n, np.inf)])
+        self._stays = np.concatenate([self._stays, staying])
+        self._staying_since = np.concatenate(
+            [self._staying_since, np.where(staying, self.time - self.params.static_age, np.inf)])
         self._turn_var = np.concatenate([self._turn_var, np.full(n, self.params.turn_prior ** 2)])
         self._anchors = np.concatenate([self._anchors, np.repeat(centers[:, None], 2, axis=1)])
         self._anchor_time = np.concatenate([self._anchor_time, np.full(n, self.time)])
@@ -575,8 +590,10 @@ class ScanTracker:
         p = self.params
         speed = np.hypot(self._x[:, 2], self._x[:, 3])
         travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
+        # returns that stayed put at the last match hold a track back, even one
+        # coasting on a velocity that a changing view gave it
         starts = ((self._hits >= p.confirm_hits) & (travelled >= p.min_travel)
-                  & (speed >= p.min_speed))
+                  & (speed >= p.min_speed) & ~self._stays)
         slow = speed < 0.5 * p.min_speed
         self._slow_since = np.where(slow, np.minimum(self._slow_since, self.time), np.inf)
         settled = slow & (self.time - self._slow_since >= p.stop_time)
