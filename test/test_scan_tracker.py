@@ -272,6 +272,19 @@ def test_a_box_whose_track_is_lost_while_the_robot_drives_round_it_is_not_reborn
         assert len(tracker.report().ids) == 0, (k, tracker.report().states)
 
 
+def test_the_track_cap_bounds_the_live_tracks():
+    grid = open_map()
+    posts = [Circle((3.0 + 1.5 * k, 10.0 + (-1) ** k * 0.8), 0.25) for k in range(5)]
+    tracker = ScanTracker(grid, TrackerParams(max_tracks=2))
+    origin = np.array([2.0, 10.0, 0.0])
+    world = World(grid, RobotSpec(radius=0.1), origin, unknown_obstacles=posts,
+                  scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
+    for k in range(15):     # the posts' returns come to stay put while the tracks live
+        assert tracker.update(ANGLES, world.scan().ranges, origin, k * DT).accepted
+        assert tracker.live_tracks == 2
+    assert len(tracker.report().ids) == 0
+
+
 def test_a_walker_turning_round_stays_reported():
     grid = open_map()
     origin = np.array([3.0, 10.0, 0.0])
