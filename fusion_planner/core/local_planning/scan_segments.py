@@ -73,6 +73,9 @@ class Segments:
         Every hit point the map does not explain [m] (candidates or not).
     labels : ndarray, int64, shape (U,)
         The candidate of each of them (-1: in a run too short to be one).
+    beam_spacing : float
+        Median angle between adjacent beams of the scan [rad] (0 for one
+        beam).
     """
 
     centers: np.ndarray
@@ -81,6 +84,7 @@ class Segments:
     occluded: np.ndarray
     unexplained: np.ndarray
     labels: np.ndarray
+    beam_spacing: float
 
 
 def map_explained_mask(grid, tolerance):
@@ -197,9 +201,10 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, 
     points, valid = hit_points(angles, ranges, origin)
     own = valid & ~explained_by_map(points, valid, grid, explained_mask)
     n = len(angles)
+    beam_spacing = float(np.median(np.abs(np.diff(angles)))) if n > 1 else 0.0
     unexplained = points[own]
     if not own.any():
-        return _empty(unexplained)
+        return _empty(unexplained, beam_spacing)
     step = np.hypot(*np.diff(points, axis=0).T)
     with np.errstate(invalid='ignore'):
         linked = own[:-1] & own[1:] & (step <= gap)
@@ -212,7 +217,6 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, 
     first = np.flatnonzero(starts)
     last = np.flatnonzero(ends)
     count = last - first + 1
-    beam_spacing = float(np.median(np.abs(np.diff(angles)))) if n > 1 else 0.0
     full_circle = n > 1 and abs(angles[-1] - angles[0]) + 1.5 * beam_spacing >= 2 * math.pi
     if full_circle and len(first) > 1 and own[0] and own[-1] \
             and math.hypot(*(points[0] - points[-1])) <= gap:
@@ -232,11 +236,10 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, 
     renumber = np.where(keep, np.cumsum(keep) - 1, -1)
     return Segments(centers=centers[keep], radii=radii[keep], counts=count[keep],
                     occluded=occluded[keep], unexplained=unexplained,
-                    labels=renumber[label[own]])
+                    labels=renumber[label[own]], beam_spacing=beam_spacing)
 
 
-def split_among(segments, origin, centers, radii, reach, min_points, beam_spacing, widest,
-                merge_ratio):
+def split_among(segments, origin, centers, radii, reach, min_points, widest, merge_ratio):
     """Cut each candidate that holds returns of two or more known objects into one per object.
 
     Two people side by side, seen nearly in line from the laser, join into
@@ -260,8 +263,6 @@ def split_among(segments, origin, centers, radii, reach, min_points, beam_spacin
         A return within this distance [m] of a circle's edge may be its object's.
     min_points : int
         Parts with fewer returns are dropped.
-    beam_spacing : float
-        Angle between adjacent beams [rad].
     widest : float
         Candidates of a larger radius [m] are too wide to be one object.
     merge_ratio : float
@@ -318,8 +319,9 @@ def split_among(segments, origin, centers, radii, reach, min_points, beam_spacin
     np.minimum.at(nearest, part_of, ranges)
     counts = np.bincount(part_of, minlength=parts)
     middle = bearing[first] + 0.5 * (low + high)
-    part_centers, part_radii = _circles_seen(origin, 0.5 * (high - low + beam_spacing), nearest,
-                                             np.stack([np.cos(middle), np.sin(middle)], axis=1))
+    seen_from = np.stack([np.cos(middle), np.sin(middle)], axis=1)
+    part_centers, part_radii = _circles_seen(origin, 0.5 * (high - low + segments.beam_spacing),
+                                             nearest, seen_from)
     closest = np.full(count, np.inf)
     np.minimum.at(closest, parent, nearest)
     part_occluded = segments.occluded[parent] | (nearest > closest[parent])
@@ -346,7 +348,7 @@ def split_among(segments, origin, centers, radii, reach, min_points, beam_spacin
         radii=np.concatenate([segments.radii[kept], part_radii[keep_part]]),
         counts=np.concatenate([segments.counts[kept], counts[keep_part]]),
         occluded=np.concatenate([segments.occluded[kept], part_occluded[keep_part]]),
-        unexplained=segments.unexplained, labels=labels)
+        unexplained=segments.unexplained, labels=labels, beam_spacing=segments.beam_spacing)
 
 
 def _circles_seen(origin, half_angle, nearest, direction):
@@ -422,7 +424,7 @@ def _nearer_beside(ranges, beside, own, gap, full_circle):
     return nearer | (outside & (not full_circle))
 
 
-def _empty(unexplained):
+def _empty(unexplained, beam_spacing):
     return Segments(centers=np.zeros((0, 2)), radii=np.zeros(0), counts=np.zeros(0, np.int64),
                     occluded=np.zeros(0, bool), unexplained=unexplained,
-                    labels=np.full(len(unexplained), -1, np.int64))
+                    labels=np.full(len(unexplained), -1, np.int64), beam_spacing=beam_spacing)

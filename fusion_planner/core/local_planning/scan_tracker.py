@@ -374,9 +374,8 @@ class ScanTracker:
         segments = segment_scan(angles, ranges, origin, self.grid, self._explained,
                                 p.cluster_gap, p.min_points, p.split_depth)
         confirmed = self._hits >= p.confirm_hits
-        spacing = float(np.median(np.abs(np.diff(angles)))) if len(angles) > 1 else 0.0
         segments = split_among(segments, origin, self._x[confirmed, 0:2],
-                               self._radius[confirmed], p.cluster_gap, p.min_points, spacing,
+                               self._radius[confirmed], p.cluster_gap, p.min_points,
                                p.max_object_radius, MERGE_RATIO)
         staying = self._staying(segments)
         objects = segments.radii <= p.max_object_radius
