@@ -731,6 +731,38 @@ def test_a_replan_proving_the_goal_unreachable_stops_the_robot_with_no_path():
     assert controller.compute(obs).status != 'no_path'         # a new plan clears it
 
 
+def test_a_robot_escaping_while_a_person_holds_its_corridor_plans_round_them():
+    """A person stands in the 1 m corridor the route runs through, 0.56 m from a robot that
+    cannot pass them: too far from them to count as giving way, the robot takes the wait for a
+    local minimum, and its escape replans round the walls alone find the same corridor. 10 s
+    without progress on it asks for a plan with the corridor closed at the person, and takes it
+    (corridors-1597383673 of seed 474747 waited out its 150 s: the open escape kept it from
+    asking)."""
+    walls = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
+    person = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
+    through = np.array([[0.0, 0.0], [5.0, 0.0]])
+    round_them = np.array([[0.0, 0.0], [0.0, 2.0], [5.0, 2.0], [5.0, 0.0]])
+    closed_at_person = []
+
+    def replan(start, goal, seen):
+        closed = bool(np.any(np.hypot(*(seen - person[0, :2]).T) < 0.3))
+        closed_at_person.append(closed)
+        path = np.vstack([start, (round_them if closed else through)[1:]])
+        return path, path
+
+    controller = make_controller('fusion', params(), replan=replan)
+    controller.set_path(through, through)
+    statuses = []
+    for k in range(int(30.0 / DT)):
+        obs = Observation(np.zeros(3), np.zeros(2), walls, person, k * DT)   # held where it is
+        statuses.append(controller.compute(obs).status)
+        if any(closed_at_person):
+            break
+    assert 'stuck_escaping' in statuses and closed_at_person[0] is False   # an escape replanned
+    assert closed_at_person[-1] and statuses[-1] == 'moving'   # round the person; the escape ended
+    assert controller.replans == len(closed_at_person)
+
+
 def test_grid_replanner_plans_around_seen_points():
     occupied = np.zeros((40, 60), bool)
     grid = GridMap(occupied, 0.1)

@@ -405,6 +405,58 @@ def test_a_fast_walker_who_comes_out_from_behind_a_slow_one_leaves_both_tracks()
         assert math.hypot(state[2] - velocity[0], state[3] - velocity[1]) < 0.15
 
 
+def test_a_walker_partly_hidden_behind_another_is_tracked_while_still_hidden():
+    """One walks at the laser with part of them behind a nearer walker the whole time.
+
+    The geometry of `crowd-1919764428`, where a person walking behind another was never
+    tracked while partly hidden (3 s) and walked into the robot 0.7 s after coming out.
+    """
+    grid = open_map()
+    explained = map_explained_mask(grid, TrackerParams().map_tolerance)
+    p = TrackerParams()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(40) * DT
+    nearer = np.stack([6.0 - 0.3 * t, np.full_like(t, 10.0)], axis=1)
+    hidden = np.stack([10.0 - 0.6 * t, np.full_like(t, 10.84)], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, np.stack([nearer, hidden], axis=1))
+    for k in range(len(t)):
+        segments = segment_scan(ANGLES, scan_of(grid, origin, [nearer[k], hidden[k]]), origin,
+                                grid, explained, p.cluster_gap, p.min_points, p.split_depth)
+        seen = np.hypot(*(segments.centers - hidden[k]).T) < RADIUS
+        assert seen.sum() == 1 and segments.occluded[seen][0], k     # partly hidden throughout
+    first = next(k for k, r in enumerate(reports)
+                 if len(r.ids) and np.hypot(*(r.states[:, 0:2] - hidden[k]).T).min() < 0.25)
+    assert first * DT <= 2.0
+    for k, report in enumerate(reports[first:], start=first):
+        state = report.states[np.argmin(np.hypot(*(report.states[:, 0:2] - hidden[k]).T))]
+        assert math.hypot(*(state[0:2] - hidden[k])) < 0.25
+        assert math.hypot(state[2] + 0.6, state[3]) < 0.2, (k, state)
+
+
+@pytest.mark.parametrize('box', [(10.0, 10.84), (8.0, 10.6), (6.8, 10.5)])
+def test_a_static_box_coming_out_from_behind_a_walker_is_not_a_mover(box):
+    """As a walker crossing in front uncovers a box, the visible part of the box grows and its
+    centre estimate moves by up to its radius: a track started on it while partly hidden
+    must not take that for walking (nor, once it is seen whole and larger, be lost and leave a
+    ghost coasting at the speed the uncovering gave it)."""
+    grid = open_map()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(40) * DT
+    for start in (9.6, 10.0, 10.2):
+        for speed in (0.3, 0.8, 1.2):
+            walker = np.stack([np.full_like(t, 6.0), start + speed * t], axis=1)
+            tracker = ScanTracker(grid)
+            for k in range(len(t)):
+                world = World(grid, RobotSpec(radius=0.1), origin,
+                              unknown_obstacles=[Circle(box, 0.3)],
+                              scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
+                ranges = np.minimum(world.scan().ranges, ray_circle_distances(
+                    origin[:2], DIRECTIONS, walker[k:k + 1], np.array([RADIUS])))
+                assert tracker.update(ANGLES, ranges, origin, k * DT).accepted
+                report = tracker.report()
+                assert np.all(np.hypot(*(report.states[:, 0:2] - box).T) > 0.6), (start, speed, k)
+
+
 def test_range_noise_does_not_cut_a_walker_in_two():
     grid = open_map()
     explained = map_explained_mask(grid, TrackerParams().map_tolerance)

@@ -249,6 +249,7 @@ class FieldFollower(ControllerBase):
         self._passing_side = 0    # side kept for the people on the route (see yielding)
         self._evader = evasion.Evader()  # keeps its evasive choice while it stays good
         self._last_replan = -math.inf  # when a new plan was last asked for [s]
+        self._last_detour = -math.inf  # when a plan round people was last asked for [s]
         self._plan_route = self._route = None
         if self.use_key_nodes and self._path is not None:
             self._set_plan_route()
@@ -555,18 +556,28 @@ class FieldFollower(ControllerBase):
         (:func:`~fusion_planner.core.local_planning.yielding.route_closures`),
         and takes it if there is one (another corridor) that it drives at
         ``max_speed`` in no more time than it has already waited beyond the
-        route it has; at most once per that time, and not while escaping.
+        route it has; at most once per that time, and not while following a
+        boundary. An escape episode may be open (a robot waiting a little
+        too far from the person to count as giving way is "stuck"): its
+        steps are for static minima, and its replans round the walls find
+        the same corridor, so they neither wait for nor delay this plan,
+        and the new plan ends the episode.
         """
-        if (self._replan is None or self._follow is not None or self._episode is not None
+        if (self._replan is None or self._follow is not None
                 or stalled < PEOPLE_DETOUR_AFTER
-                or obs.time - self._last_replan < PEOPLE_DETOUR_AFTER):
+                or obs.time - self._last_detour < PEOPLE_DETOUR_AFTER):
             return False
         walls = points_off_circles(scene.all_points, scene.circle_centres, scene.circle_radii)
         closures = route_closures(self._route, q, scene.tracked, walls, self.params,
                                   self.params.point_spacing)
+        if len(closures) == 0:
+            return False
+        self._last_detour = obs.time
         longest = self._remaining(q) + self.params.max_speed * stalled
-        return len(closures) > 0 and self._replan_now(obs, q, scene, people=closures,
-                                                      longest=longest)
+        if not self._replan_now(obs, q, scene, people=closures, longest=longest):
+            return False
+        self._episode = None
+        return True
 
     def _replan_now(self, obs, q, scene, people=None, longest=math.inf):
         """Ask for a global plan around everything seen so far; True on success.

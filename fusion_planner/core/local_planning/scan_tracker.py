@@ -21,7 +21,8 @@ controller avoids (:attr:`Observation.tracked`):
 3. **Association**: the squared Mahalanobis distance of each candidate to
    each predicted track, gated at ``gate`` (chi-square, 2 degrees of
    freedom), at ``max_gate_distance``, and by size: a whole candidate more
-   than ``size_ratio`` times larger or smaller than a confirmed track is a
+   than ``size_ratio`` times larger or smaller than a confirmed track (not
+   one born partly hidden, step 4, which may be larger than it looked) is a
    merge (a person beside a box or another person) or a split (two who
    walked together part) and is not that track's object; one-to-one by
    the Hungarian method (:func:`scipy.optimize.linear_sum_assignment`).
@@ -33,7 +34,15 @@ controller avoids (:attr:`Observation.tracked`):
    biased), which only keeps its track alive; unmatched whole candidates
    start tentative tracks (at rest, velocity uncertain); a
    tentative track that misses a scan, or any track unseen for
-   ``coast_time``, is dropped.
+   ``coast_time``, is dropped. A person may walk for seconds partly hidden
+   behind another: a partly hidden candidate just behind a moving track
+   (their angular extents, seen from the laser, within two beams) and at
+   least :data:`HIDDEN_BIRTH_RADIUS` across also starts a track, which such
+   candidates then correct, with the hidden part's bias as extra noise
+   (:data:`HIDDEN_BIAS_FRACTION` of the track's radius) and the larger of
+   the two radii (what is seen is a lower bound). Uncovering a static object
+   moves its centre estimate by up to its radius, so a track born partly
+   hidden must travel its radius farther than ``min_travel`` to move.
 5. **Report**: only tracks that move. A track is *moving* once it has been
    matched ``confirm_hits`` times, has travelled ``min_travel`` from where
    it was born, and its speed is at least ``min_speed``. It stays moving
@@ -130,6 +139,13 @@ MERGE_RATIO = 1.2
 #: Cost of a forbidden (gated out) pairing in the assignment; any gated-in
 #: cost is below ``gate``.
 FORBIDDEN_COST = 1e9
+#: A partly hidden candidate behind a moving track starts a track only from
+#: this radius [m] on: a sliver of a few returns beside a walker is as often
+#: the edge of whatever stands behind them.
+HIDDEN_BIRTH_RADIUS = 0.1
+#: Standard deviation of a partly hidden candidate's centre, as a fraction of
+#: its track's radius (added to ``measurement_std``).
+HIDDEN_BIAS_FRACTION = 0.5
 
 
 @dataclass(frozen=True)
@@ -336,6 +352,7 @@ class ScanTracker:
         self._tentative = np.zeros(0, bool)  # a tentative mover (module notes, step 6)
         self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
         self._stays = np.zeros(0, bool)    # its returns stayed put at its last match (step 5)
+        self._born_hidden = np.zeros(0, bool)  # born partly hidden behind a mover (step 4)
         self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
         self._turn_var = np.zeros(0)       # heading diffusion estimate [rad^2 / s]
         self._anchors = np.zeros((0, 2, 2))  # positions at the last two window ends [m]
@@ -381,12 +398,20 @@ class ScanTracker:
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
         occluded, staying = segments.occluded[objects], staying[objects]
+        behind = occluded & self._behind_movers(centers, radii, origin[:2],
+                                                segments.beam_spacing)
         track_of = self._associate(centers, np.where(occluded, np.nan, radii))
         matched = track_of >= 0
         whole = matched & ~occluded
         self._correct(track_of[whole], centers[whole], radii[whole])
+        # a track born partly hidden behind a mover follows such glimpses of it
+        glimpsed = matched & behind
+        glimpsed[glimpsed] = self._born_hidden[track_of[glimpsed]]
+        tracks = track_of[glimpsed]
+        self._correct(tracks, centers[glimpsed], np.maximum(self._radius[tracks], radii[glimpsed]),
+                      (HIDDEN_BIAS_FRACTION * self._radius[tracks]) ** 2)
         self._measure_turns(track_of[whole])
-        # a partly hidden object's centre is biased: its track coasts, but lives on
+        # any other partly hidden object's centre is too biased: its track coasts, but lives on
         self._last_seen[track_of[matched & occluded]] = self.time
         # an object whose returns stay in the same cells is not moving, whatever
         # its centre estimate does as the view changes; it must travel again,
@@ -402,8 +427,8 @@ class ScanTracker:
         self._moving[still] = False
         self._birth[still] = self._x[still, 0:2]
         self._drop_lost()
-        born = ~matched & ~occluded
-        self._give_birth(centers[born], radii[born], staying[born], origin[:2])
+        born = ~matched & (~occluded | (behind & (radii >= HIDDEN_BIRTH_RADIUS)))
+        self._give_birth(centers[born], radii[born], staying[born], occluded[born], origin[:2])
         self._mark_moving()
         note = '' if np.isfinite(ranges).any() else 'no returns'
         return ScanVerdict(True, note)
@@ -455,6 +480,29 @@ class ScanTracker:
                                 minlength=len(segments.counts))
         return old_count >= STATIC_FRACTION * segments.counts
 
+    def _behind_movers(self, centers, radii, laser, beam_spacing):
+        """Whether each candidate (N, 2) [m] lies just behind a moving track, seen from ``laser``.
+
+        Behind: farther from the laser than the track's centre, with the two
+        discs' angular extents (``radii`` (N,) [m], the track's radius) within
+        two beams (``beam_spacing`` [rad]) of each other.
+        """
+        movers = self._moving
+        if not len(centers) or not movers.any():
+            return np.zeros(len(centers), bool)
+        sight = centers - laser
+        far = np.hypot(sight[:, 0], sight[:, 1])
+        mover_sight = self._x[movers, 0:2] - laser
+        near = np.hypot(mover_sight[:, 0], mover_sight[:, 1])
+        half_width = np.arcsin(np.clip(radii / np.maximum(far, 1e-9), 0.0, 1.0))
+        mover_half_width = np.arcsin(np.clip(self._radius[movers] / np.maximum(near, 1e-9),
+                                             0.0, 1.0))
+        bearing = np.arctan2(sight[:, 1], sight[:, 0])
+        mover_bearing = np.arctan2(mover_sight[:, 1], mover_sight[:, 0])
+        apart = np.abs(np.angle(np.exp(1j * (bearing[:, None] - mover_bearing[None, :]))))
+        touching = apart <= half_width[:, None] + mover_half_width[None, :] + 2.0 * beam_spacing
+        return np.any(touching & (near[None, :] < far[:, None]), axis=1)
+
     def _predict(self, dt):
         if dt <= 0 or not len(self._x):
             return
@@ -486,7 +534,7 @@ class ScanTracker:
         ratio = radii[None, :] / self._radius[:, None]                          # (K, C)
         with np.errstate(invalid='ignore'):  # NaN: a partly hidden candidate, any size
             resized = (ratio > p.size_ratio) | (ratio < 1.0 / p.size_ratio)
-        resized &= (self._hits >= p.confirm_hits)[:, None]
+        resized &= ((self._hits >= p.confirm_hits) & ~self._born_hidden)[:, None]
         allowed = (mahalanobis <= p.gate) & (distance <= p.max_gate_distance) & ~resized
         cost = np.where(allowed, mahalanobis, FORBIDDEN_COST)
         rows, cols = linear_sum_assignment(cost)
@@ -494,11 +542,14 @@ class ScanTracker:
         track_of[cols[ok]] = rows[ok]
         return track_of
 
-    def _correct(self, tracks, centers, radii):
+    def _correct(self, tracks, centers, radii, extra_variance=0.0):
+        """Kalman-correct ``tracks`` with ``centers``, whose variance [m^2] is
+        ``measurement_std`` squared plus ``extra_variance`` (scalar or per track)."""
         if not len(tracks):
             return
         x, p = self._x[tracks], self._p[tracks]
-        s = p[:, 0:2, 0:2] + self._measurement_cov
+        extra = np.broadcast_to(extra_variance, (len(tracks),))[:, None, None] * np.eye(2)
+        s = p[:, 0:2, 0:2] + self._measurement_cov + extra
         gain = p[:, :, 0:2] @ np.linalg.inv(s)                                 # (m, 4, 2)
         x = x + np.einsum('mij,mj->mi', gain, centers - x[:, 0:2])
         p = p - gain @ p[:, 0:2, :]
@@ -545,8 +596,10 @@ class ScanTracker:
         if lost.any():
             self._keep(~lost)
 
-    def _give_birth(self, centers, radii, staying, laser):
+    def _give_birth(self, centers, radii, staying, hidden, laser):
         """Start tentative tracks on ``centers`` (N, 2) [m] of ``radii`` (N,) [m].
+
+        ``hidden`` (N,): partly hidden candidates (step 4 of the module notes).
 
         ``staying`` (N,): whose returns fall in old cells; such a candidate
         has been where it is for at least ``static_age``, so its track starts
@@ -559,7 +612,8 @@ class ScanTracker:
             return
         if len(centers) > room:
             nearest = np.sort(np.argsort(np.hypot(*(centers - laser).T), kind='stable')[:room])
-            centers, radii, staying = centers[nearest], radii[nearest], staying[nearest]
+            centers, radii = centers[nearest], radii[nearest]
+            staying, hidden = staying[nearest], hidden[nearest]
         n = len(centers)
         x = np.zeros((n, 4))
         x[:, 0:2] = centers
@@ -579,6 +633,7 @@ class ScanTracker:
         self._tentative = np.concatenate([self._tentative, np.zeros(n, bool)])
         self._slow_since = np.concatenate([self._slow_since, np.full(n, self.time)])
         self._stays = np.concatenate([self._stays, staying])
+        self._born_hidden = np.concatenate([self._born_hidden, hidden])
         self._staying_since = np.concatenate(
             [self._staying_since, np.where(staying, self.time - self.params.static_age, np.inf)])
         self._turn_var = np.concatenate([self._turn_var, np.full(n, self.params.turn_prior ** 2)])
@@ -591,7 +646,8 @@ class ScanTracker:
         travelled = np.hypot(*(self._x[:, 0:2] - self._birth).T)
         # returns that stayed put at the last match hold a track back, even one
         # coasting on a velocity that a changing view gave it
-        starts = ((self._hits >= p.confirm_hits) & (travelled >= p.min_travel)
+        travel = p.min_travel + np.where(self._born_hidden, self._radius, 0.0)
+        starts = ((self._hits >= p.confirm_hits) & (travelled >= travel)
                   & (speed >= p.min_speed) & ~self._stays)
         slow = speed < 0.5 * p.min_speed
         self._slow_since = np.where(slow, np.minimum(self._slow_since, self.time), np.inf)
@@ -611,6 +667,7 @@ class ScanTracker:
         self._moving, self._tentative = self._moving[mask], self._tentative[mask]
         self._slow_since = self._slow_since[mask]
         self._stays = self._stays[mask]
+        self._born_hidden = self._born_hidden[mask]
         self._staying_since = self._staying_since[mask]
         self._turn_var = self._turn_var[mask]
         self._anchors, self._anchor_time = self._anchors[mask], self._anchor_time[mask]
