@@ -45,6 +45,19 @@ def wrap_angle(angle):
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def half_angle_seen(radius, distance):
+    """Half the angle [rad] a disc of ``radius`` [m] spans seen from ``distance`` [m] off its centre.
+
+    Element-wise on arrays; ``pi / 2`` from inside the disc.
+
+    Examples
+    --------
+    >>> round(float(half_angle_seen(1.0, 2.0)), 6)
+    0.523599
+    """
+    return np.arcsin(np.clip(radius / np.maximum(distance, 1e-9), 0.0, 1.0))
+
+
 def thin_points(points, spacing):
     """Keep one point per ``spacing`` x ``spacing`` square.
 

@@ -127,6 +127,7 @@ from scipy.optimize import linear_sum_assignment
 
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.local_planning.hit_ages import HitAges
+from fusion_planner.core.local_planning.local_geometry import half_angle_seen
 from fusion_planner.core.local_planning.scan_segments import (
     map_explained_mask, segment_scan, split_among)
 
@@ -398,8 +399,9 @@ class ScanTracker:
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
         occluded, staying = segments.occluded[objects], staying[objects]
-        behind = occluded & self._behind_movers(centers, radii, origin[:2],
-                                                segments.beam_spacing)
+        behind = occluded.copy()
+        behind[occluded] = self._behind_movers(centers[occluded], radii[occluded], origin[:2],
+                                               segments.beam_spacing)
         track_of = self._associate(centers, np.where(occluded, np.nan, radii))
         matched = track_of >= 0
         whole = matched & ~occluded
@@ -494,9 +496,8 @@ class ScanTracker:
         far = np.hypot(sight[:, 0], sight[:, 1])
         mover_sight = self._x[movers, 0:2] - laser
         near = np.hypot(mover_sight[:, 0], mover_sight[:, 1])
-        half_width = np.arcsin(np.clip(radii / np.maximum(far, 1e-9), 0.0, 1.0))
-        mover_half_width = np.arcsin(np.clip(self._radius[movers] / np.maximum(near, 1e-9),
-                                             0.0, 1.0))
+        half_width = half_angle_seen(radii, far)
+        mover_half_width = half_angle_seen(self._radius[movers], near)
         bearing = np.arctan2(sight[:, 1], sight[:, 0])
         mover_bearing = np.arctan2(mover_sight[:, 1], mover_sight[:, 0])
         apart = np.abs(np.angle(np.exp(1j * (bearing[:, None] - mover_bearing[None, :]))))

@@ -64,7 +64,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from fusion_planner.core.local_planning.local_geometry import points_off_circles
+from fusion_planner.core.local_planning.local_geometry import half_angle_seen, points_off_circles
 
 #: Sample spacing of the band [m].
 CELL = 0.1
@@ -168,7 +168,7 @@ class _Room:
         clear = self.tree.query(centres, distance_upper_bound=self.radius)[0] > self.radius
         rel = centres - self.q
         distance = np.hypot(rel[:, 0], rel[:, 1])
-        half = np.arcsin(np.clip(self.radius / np.maximum(distance, 1e-9), 0.0, 1.0))
+        half = half_angle_seen(self.radius, distance)
         spans = np.maximum(np.ceil(half / (2.0 * math.pi / BEARING_BINS)).astype(int), 1)
         bins = _bearing_bins(np.arctan2(rel[:, 1], rel[:, 0]))
         length = np.minimum(2 * spans + 1, BEARING_BINS)     # bins the disc covers
