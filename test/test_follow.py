@@ -16,7 +16,8 @@ import pytest
 
 from fusion_planner.core.local_planning import evasion, way_out
 from fusion_planner.core.local_planning.apf import ApfParams
-from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut
+from fusion_planner.core.errors import (
+    GoalOccupied, InvalidInput, NoValidPathCouldBeFound, PlannerTimedOut)
 from fusion_planner.core.local_planning.follow import (
     CONTROLLER_NAMES, STATUSES, Command, FieldFollower, FollowerParams, GridReplanner,
     Observation, make_controller, thin_points)
@@ -731,6 +732,32 @@ def test_a_replan_proving_the_goal_unreachable_stops_the_robot_with_no_path():
     assert controller.compute(obs).status != 'no_path'         # a new plan clears it
 
 
+def test_a_replan_finding_the_goal_occupied_proves_nothing():
+    """A goal occupied by what the laser saw may be a person standing on it
+    (crowd-3562381553 of seed 881001 ended in a false no_path): the robot carries on, and when
+    held until escape_time_limit it fails quoting the replan."""
+    walls = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
+    person = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
+    through = np.array([[0.0, 0.0], [5.0, 0.0]])
+    calls = []
+
+    def replan(start, goal, seen):
+        calls.append(1)
+        raise GoalOccupied('goal (5.000, 0.000) is inside an obstacle, in this test')
+
+    p = params()
+    controller = make_controller('fusion', p, replan=replan)
+    controller.set_path(through, through)
+    statuses = []
+    while len(statuses) * DT < 2 * p.escape_time_limit and 'failed' not in statuses:
+        obs = Observation(np.zeros(3), np.zeros(2), walls, person, len(statuses) * DT)
+        command = controller.compute(obs)
+        statuses.append(command.status)
+    assert calls and 'no_path' not in statuses and controller.no_path_proven_at is None
+    assert statuses[-1] == 'failed' and 'inside an obstacle, in this test' in command.reason
+    assert (len(statuses) - 1) * DT == pytest.approx(p.escape_time_limit, abs=2 * DT)
+
+
 def test_a_robot_escaping_while_a_person_holds_its_corridor_plans_round_them():
     """A person stands in the 1 m corridor the route runs through, 0.56 m from a robot that
     cannot pass them: too far from them to count as giving way, the robot takes the wait for a
@@ -761,6 +788,36 @@ def test_a_robot_escaping_while_a_person_holds_its_corridor_plans_round_them():
     assert 'stuck_escaping' in statuses and closed_at_person[0] is False   # an escape replanned
     assert closed_at_person[-1] and statuses[-1] == 'moving'   # round the person; the escape ended
     assert controller.replans == len(closed_at_person)
+
+
+def test_the_first_plan_round_people_restarts_the_time_allowed_without_progress():
+    """The person of the test above holds the robot where it is. The first plan round them,
+    10 s into the wait, gives the robot ``escape_time_limit`` again (corridors-3917795429 of
+    seed 535353 was herded back along its new route and gave up 20 s after taking it); the
+    second, 10 s later, does not, so a robot held for good still gives up."""
+    walls = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
+    person = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
+    through = np.array([[0.0, 0.0], [5.0, 0.0]])
+    round_them = np.array([[0.0, 0.0], [0.0, 2.0], [5.0, 2.0], [5.0, 0.0]])
+    detours = []
+
+    def replan(start, goal, seen):
+        closed = bool(np.any(np.hypot(*(seen - person[0, :2]).T) < 0.3))
+        if closed:
+            detours.append(len(statuses) * DT)
+        path = np.vstack([start, (round_them if closed else through)[1:]])
+        return path, path
+
+    p = params()
+    controller = make_controller('fusion', p, replan=replan)
+    controller.set_path(through, through)
+    statuses = []
+    while len(statuses) * DT < 80.0 and 'failed' not in statuses:
+        obs = Observation(np.zeros(3), np.zeros(2), walls, person, len(statuses) * DT)
+        statuses.append(controller.compute(obs).status)
+    assert len(detours) >= 2 and detours[1] < detours[0] + p.escape_time_limit
+    failed_at = (len(statuses) - 1) * DT
+    assert failed_at == pytest.approx(detours[0] + p.escape_time_limit, abs=2 * DT)
 
 
 def test_grid_replanner_plans_around_seen_points():

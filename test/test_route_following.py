@@ -159,6 +159,10 @@ def test_time_without_progress_counts_from_the_last_progress_and_survives_a_new_
     assert monitor.update(20.0, 15.0) == 9.0            # the clock was kept
     assert monitor.update(21.0, 14.8) == 0.0
     assert monitor.update(5.0, 14.8) == 0.0             # the clock went back: start over
+    assert monitor.update(12.0, 14.8) == 7.0
+    monitor.restart(12.0, 18.0)                         # a new plan given the full allowance
+    assert monitor.update(13.0, 18.5) == 1.0            # farther than at the restart: no progress
+    assert monitor.update(14.0, 17.8) == 0.0
 
 
 # -- passing people --------------------------------------------------------------------------

@@ -92,7 +92,8 @@ class FollowerParams:
         Longest time without progress toward the goal [s], > 0, before
         status ``'failed'`` (see
         :mod:`~fusion_planner.core.local_planning.progress`; a field
-        controller without escape fails at its first local minimum).
+        controller without escape fails at its first local minimum; the
+        first plan round people for a goal restarts this time).
     robot_radius : float
         Robot radius [m], >= 0.
     prediction_horizon : float

@@ -104,8 +104,11 @@ BLOCKED_REPLAN_PERIOD = 2.0
 #: navigation stack whose costmap marks a person does); at most this often.
 PEOPLE_DETOUR_AFTER = 10.0
 
-#: Replanning outcomes that prove the goal unreachable around what was seen.
-UNREACHABLE = (NoValidPathCouldBeFound, GoalOccupied)
+#: Replanning outcomes that prove the goal unreachable around what was seen. A
+#: goal occupied by what the laser saw (:class:`GoalOccupied`) is not among
+#: them: the plan being followed reached it on the map, and a person may be
+#: standing on it.
+UNREACHABLE = (NoValidPathCouldBeFound,)
 
 #: Below these speeds [m/s, rad/s] the robot counts as stopped.
 STOPPED_SPEED = 1e-3
@@ -250,6 +253,8 @@ class FieldFollower(ControllerBase):
         self._evader = evasion.Evader()  # keeps its evasive choice while it stays good
         self._last_replan = -math.inf  # when a new plan was last asked for [s]
         self._last_detour = -math.inf  # when a plan round people was last asked for [s]
+        self._detour_taken = False     # a plan round people has had its fresh allowance
+        self._goal_blocked = None      # why the last replan found the goal occupied
         self._plan_route = self._route = None
         if self.use_key_nodes and self._path is not None:
             self._set_plan_route()
@@ -562,6 +567,13 @@ class FieldFollower(ControllerBase):
         steps are for static minima, and its replans round the walls find
         the same corridor, so they neither wait for nor delay this plan,
         and the new plan ends the episode.
+
+        The first such plan for a goal restarts the clock of
+        ``escape_time_limit``: the person who held the robot may herd it
+        back while it turns to the other corridor, and the time spent
+        waiting for them was not the robot's to make up. Later ones do not,
+        so a robot sent back and forth between corridors that people hold
+        still gives up.
         """
         if (self._replan is None or self._follow is not None
                 or stalled < PEOPLE_DETOUR_AFTER
@@ -577,6 +589,9 @@ class FieldFollower(ControllerBase):
         if not self._replan_now(obs, q, scene, people=closures, longest=longest):
             return False
         self._episode = None
+        if not self._detour_taken:
+            self._detour_taken = True
+            self._monitor.restart(obs.time, self._remaining(q))
         return True
 
     def _replan_now(self, obs, q, scene, people=None, longest=math.inf):
@@ -598,6 +613,7 @@ class FieldFollower(ControllerBase):
             key_nodes = as_path(key_nodes, 'replanned key_nodes')
         except PlanningError as err:
             LOGGER.info('replanning from (%.2f, %.2f) failed: %s', q[0], q[1], err)
+            self._goal_blocked = str(err) if isinstance(err, GoalOccupied) else None
             if isinstance(err, UNREACHABLE) and people is None:
                 self._unreachable = (f'the goal is unreachable around the obstacles seen '
                                      f'(replanned from ({q[0]:.2f}, {q[1]:.2f})): {err}')
@@ -609,6 +625,7 @@ class FieldFollower(ControllerBase):
             LOGGER.info('a plan of %.1f m round the people is longer than %.1f m; waiting on',
                         length, longest)
             return False
+        self._goal_blocked = None
         # the planner ends at the goal's cell centre; the goal stays the one asked for
         self._path = np.vstack([path[:-1], goal])
         self._key_nodes = np.vstack([key_nodes[:-1], goal])
@@ -671,6 +688,8 @@ class FieldFollower(ControllerBase):
         if stalled > p.escape_time_limit:
             reason = (f'stuck: no progress toward the goal for {p.escape_time_limit:g} s, near '
                       f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
+            if self._goal_blocked is not None:
+                reason += f' (the last replan: {self._goal_blocked})'
             return self._fail(obs, reason, target.copy())
         direction, reason = self._escape_direction(obs, scene)
         if reason is not None:

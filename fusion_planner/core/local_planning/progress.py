@@ -6,7 +6,8 @@ then drives on has not failed. :class:`ProgressMonitor` keeps the best (least)
 remaining distance to the goal seen so far and when it last improved by at
 least ``stuck_progress``; a new plan may change what "remaining" means, so
 :meth:`ProgressMonitor.rebase` restarts the distance without restarting the
-clock (replanning alone is no progress).
+clock (replanning alone is no progress); :meth:`ProgressMonitor.restart`
+restarts both, for a caller that grants a new plan the full allowance.
 
 Examples
 --------
@@ -15,6 +16,8 @@ Examples
 (0.0, 5.0, 0.0)
 >>> monitor.rebase(12.0); monitor.update(8.0, 12.0)
 2.0
+>>> monitor.restart(8.0, 12.0); monitor.update(9.0, 12.5)
+1.0
 """
 
 import math
@@ -44,6 +47,11 @@ class ProgressMonitor:
             self._best = remaining
             self._since = t
         return t - self._since
+
+    def restart(self, t, remaining):
+        """Measure from ``remaining`` [m] at time ``t`` [s] on, as if progress had just been made."""
+        self._best = remaining
+        self._since = t
 
     def rebase(self, remaining):
         """A new plan: measure from ``remaining`` [m] on, keeping the time of the last progress."""
