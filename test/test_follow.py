@@ -732,13 +732,38 @@ def test_a_replan_proving_the_goal_unreachable_stops_the_robot_with_no_path():
     assert controller.compute(obs).status != 'no_path'         # a new plan clears it
 
 
+# A 1 m corridor, a person standing in it 1 m ahead of a robot held where it is, at its mouth;
+# the route runs through it, or round it when a replan is given points closing it at the person.
+CORRIDOR_WALLS = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
+PERSON_IN_CORRIDOR = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
+THROUGH_CORRIDOR = np.array([[0.0, 0.0], [5.0, 0.0]])
+ROUND_CORRIDOR = np.array([[0.0, 0.0], [0.0, 2.0], [5.0, 2.0], [5.0, 0.0]])
+
+
+def closed_at_person(seen):
+    """Whether the points ``seen`` (M, 2) [m] given to a replan close the corridor at the person."""
+    return bool(np.any(np.hypot(*(seen - PERSON_IN_CORRIDOR[0, :2]).T) < 0.3))
+
+
+def hold_at_corridor(controller, commands, duration, done=lambda commands: False):
+    """Append to ``commands`` those of a robot held at the corridor's mouth, every DT, from
+    t = 0, until ``done(commands)`` or ``duration`` [s]."""
+    controller.set_path(THROUGH_CORRIDOR, THROUGH_CORRIDOR)
+    while len(commands) * DT < duration and not done(commands):
+        obs = Observation(np.zeros(3), np.zeros(2), CORRIDOR_WALLS, PERSON_IN_CORRIDOR,
+                          len(commands) * DT)
+        commands.append(controller.compute(obs))
+
+
+def has_failed(commands):
+    """Whether the last of ``commands`` is a failure."""
+    return bool(commands) and commands[-1].status == 'failed'
+
+
 def test_a_replan_finding_the_goal_occupied_proves_nothing():
     """A goal occupied by what the laser saw may be a person standing on it
     (crowd-3562381553 of seed 881001 ended in a false no_path): the robot carries on, and when
     held until escape_time_limit it fails quoting the replan."""
-    walls = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
-    person = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
-    through = np.array([[0.0, 0.0], [5.0, 0.0]])
     calls = []
 
     def replan(start, goal, seen):
@@ -747,76 +772,58 @@ def test_a_replan_finding_the_goal_occupied_proves_nothing():
 
     p = params()
     controller = make_controller('fusion', p, replan=replan)
-    controller.set_path(through, through)
-    statuses = []
-    while len(statuses) * DT < 2 * p.escape_time_limit and 'failed' not in statuses:
-        obs = Observation(np.zeros(3), np.zeros(2), walls, person, len(statuses) * DT)
-        command = controller.compute(obs)
-        statuses.append(command.status)
+    commands = []
+    hold_at_corridor(controller, commands, 2 * p.escape_time_limit,
+                     has_failed)
+    statuses = [c.status for c in commands]
     assert calls and 'no_path' not in statuses and controller.no_path_proven_at is None
-    assert statuses[-1] == 'failed' and 'inside an obstacle, in this test' in command.reason
+    assert statuses[-1] == 'failed' and 'inside an obstacle, in this test' in commands[-1].reason
     assert (len(statuses) - 1) * DT == pytest.approx(p.escape_time_limit, abs=2 * DT)
 
 
 def test_a_robot_escaping_while_a_person_holds_its_corridor_plans_round_them():
-    """A person stands in the 1 m corridor the route runs through, 0.56 m from a robot that
-    cannot pass them: too far from them to count as giving way, the robot takes the wait for a
-    local minimum, and its escape replans round the walls alone find the same corridor. 10 s
-    without progress on it asks for a plan with the corridor closed at the person, and takes it
-    (corridors-1597383673 of seed 474747 waited out its 150 s: the open escape kept it from
-    asking)."""
-    walls = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
-    person = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
-    through = np.array([[0.0, 0.0], [5.0, 0.0]])
-    round_them = np.array([[0.0, 0.0], [0.0, 2.0], [5.0, 2.0], [5.0, 0.0]])
-    closed_at_person = []
+    """The person stands 0.56 m from a robot that cannot pass them: too far from them to count
+    as giving way, the robot takes the wait for a local minimum, and its escape replans round
+    the walls alone find the same corridor. 10 s without progress on it asks for a plan with
+    the corridor closed at the person, and takes it (corridors-1597383673 of seed 474747
+    waited out its 150 s: the open escape kept it from asking)."""
+    closed = []
 
     def replan(start, goal, seen):
-        closed = bool(np.any(np.hypot(*(seen - person[0, :2]).T) < 0.3))
-        closed_at_person.append(closed)
-        path = np.vstack([start, (round_them if closed else through)[1:]])
+        closed.append(closed_at_person(seen))
+        path = np.vstack([start, (ROUND_CORRIDOR if closed[-1] else THROUGH_CORRIDOR)[1:]])
         return path, path
 
     controller = make_controller('fusion', params(), replan=replan)
-    controller.set_path(through, through)
-    statuses = []
-    for k in range(int(30.0 / DT)):
-        obs = Observation(np.zeros(3), np.zeros(2), walls, person, k * DT)   # held where it is
-        statuses.append(controller.compute(obs).status)
-        if any(closed_at_person):
-            break
-    assert 'stuck_escaping' in statuses and closed_at_person[0] is False   # an escape replanned
-    assert closed_at_person[-1] and statuses[-1] == 'moving'   # round the person; the escape ended
-    assert controller.replans == len(closed_at_person)
+    commands = []
+    hold_at_corridor(controller, commands, 30.0, lambda commands: any(closed))
+    statuses = [c.status for c in commands]
+    assert 'stuck_escaping' in statuses and closed[0] is False   # an escape replanned
+    assert closed[-1] and statuses[-1] == 'moving'   # round the person; the escape ended
+    assert controller.replans == len(closed)
 
 
 def test_the_first_plan_round_people_restarts_the_time_allowed_without_progress():
-    """The person of the test above holds the robot where it is. The first plan round them,
-    10 s into the wait, gives the robot ``escape_time_limit`` again (corridors-3917795429 of
-    seed 535353 was herded back along its new route and gave up 20 s after taking it); the
-    second, 10 s later, does not, so a robot held for good still gives up."""
-    walls = np.vstack([wall((0.5, 0.5), (6.0, 0.5)), wall((0.5, -0.5), (6.0, -0.5))])
-    person = np.array([[1.0, 0.0, 0.0, 0.0, 0.24]])
-    through = np.array([[0.0, 0.0], [5.0, 0.0]])
-    round_them = np.array([[0.0, 0.0], [0.0, 2.0], [5.0, 2.0], [5.0, 0.0]])
+    """The person of the test above holds the robot. The first plan round them, 10 s into the
+    wait, gives the robot ``escape_time_limit`` again (corridors-3917795429 of seed 535353 was
+    herded back along its new route and gave up 20 s after taking it); the second, 10 s later,
+    does not, so a robot held for good still gives up."""
     detours = []
+    commands = []
 
     def replan(start, goal, seen):
-        closed = bool(np.any(np.hypot(*(seen - person[0, :2]).T) < 0.3))
-        if closed:
-            detours.append(len(statuses) * DT)
-        path = np.vstack([start, (round_them if closed else through)[1:]])
+        if closed_at_person(seen):
+            detours.append(len(commands) * DT)
+        path = np.vstack([start, (ROUND_CORRIDOR if closed_at_person(seen)
+                                  else THROUGH_CORRIDOR)[1:]])
         return path, path
 
     p = params()
     controller = make_controller('fusion', p, replan=replan)
-    controller.set_path(through, through)
-    statuses = []
-    while len(statuses) * DT < 80.0 and 'failed' not in statuses:
-        obs = Observation(np.zeros(3), np.zeros(2), walls, person, len(statuses) * DT)
-        statuses.append(controller.compute(obs).status)
+    hold_at_corridor(controller, commands, 80.0,
+                     has_failed)
     assert len(detours) >= 2 and detours[1] < detours[0] + p.escape_time_limit
-    failed_at = (len(statuses) - 1) * DT
+    failed_at = (len(commands) - 1) * DT
     assert failed_at == pytest.approx(detours[0] + p.escape_time_limit, abs=2 * DT)
 
 
