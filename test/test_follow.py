@@ -773,8 +773,7 @@ def test_a_replan_finding_the_goal_occupied_proves_nothing():
     p = params()
     controller = make_controller('fusion', p, replan=replan)
     commands = []
-    hold_at_corridor(controller, commands, 2 * p.escape_time_limit,
-                     has_failed)
+    hold_at_corridor(controller, commands, 2 * p.escape_time_limit, has_failed)
     statuses = [c.status for c in commands]
     assert calls and 'no_path' not in statuses and controller.no_path_proven_at is None
     assert statuses[-1] == 'failed' and 'inside an obstacle, in this test' in commands[-1].reason
@@ -812,16 +811,15 @@ def test_the_first_plan_round_people_restarts_the_time_allowed_without_progress(
     commands = []
 
     def replan(start, goal, seen):
-        if closed_at_person(seen):
+        closed = closed_at_person(seen)
+        if closed:
             detours.append(len(commands) * DT)
-        path = np.vstack([start, (ROUND_CORRIDOR if closed_at_person(seen)
-                                  else THROUGH_CORRIDOR)[1:]])
+        path = np.vstack([start, (ROUND_CORRIDOR if closed else THROUGH_CORRIDOR)[1:]])
         return path, path
 
     p = params()
     controller = make_controller('fusion', p, replan=replan)
-    hold_at_corridor(controller, commands, 80.0,
-                     has_failed)
+    hold_at_corridor(controller, commands, 80.0, has_failed)
     assert len(detours) >= 2 and detours[1] < detours[0] + p.escape_time_limit
     failed_at = (len(commands) - 1) * DT
     assert failed_at == pytest.approx(detours[0] + p.escape_time_limit, abs=2 * DT)
