@@ -483,6 +483,22 @@ def test_evasion_does_not_pass_a_person_at_speed_where_a_turn_of_theirs_would_to
     assert evade_moving(0.8, farther) == (0.8, 0.0, False)
 
 
+@pytest.mark.parametrize('wall_y, kept', [(None, False), (1.5, True)])
+def test_a_person_in_the_open_may_turn_whatever_the_tracker_measured(wall_y, kept):
+    """A person measured walking straight may still turn into the robot where nothing stops them.
+
+    In the open (no static point within ``OPEN_CLEARANCE``) the futures turn at least
+    ``TURN_STD``; beside a wall the measured diffusion holds and the robot drives on.
+    """
+    head_on = np.array([[3.0, 0.8, -0.5, 0.0, 0.25]])  # 0.8 m beside the robot's way, coming
+    points = np.zeros((0, 2)) if wall_y is None else wall((-1.0, wall_y), (6.0, wall_y))
+    if wall_y is not None:
+        assert 0.0 < wall_y - head_on[0, 1] < evasion.OPEN_CLEARANCE
+    command = evasion.evade(np.zeros(3), np.array([0.8, 0.0]), (0.8, 0.0), np.array([1.0, 0.0]),
+                            head_on, points, params(), turn_stds=np.array([0.0]))
+    assert (command == (0.8, 0.0, False)) == kept
+
+
 def test_evasion_expects_a_person_to_be_deflected_by_another_they_walk_into():
     """People do not walk through each other: one who meets another turns off, here at the robot.
 
