@@ -321,6 +321,71 @@ def test_a_walker_stepping_out_from_behind_a_corner_stays_reported():
     assert reported[-1][0, 2] > 0.2
 
 
+def test_a_walker_stepping_out_from_behind_a_wall_is_reported_before_seen_whole():
+    """A block (x 6-8 m, y 10.5-14 m) hides a person walking south at x = 9 m from a
+    standing laser; for 1 s only a growing part of them shows beside the block's returns.
+    Started on those glimpses, their track is reported while they are still partly hidden,
+    walking the right way, and ends on their true velocity."""
+    grid = open_map(pillar=(slice(105, 140), slice(60, 80)))
+    explained = map_explained_mask(grid, TrackerParams().map_tolerance)
+    p = TrackerParams()
+    origin = np.array([3.0, 10.0, 0.0])
+    t = np.arange(60) * DT
+    walker = np.stack([np.full_like(t, 9.0), 13.0 - 0.5 * t], axis=1)
+    reports = run(ScanTracker(grid), grid, origin, walker[:, None, :])
+    first = next(k for k, r in enumerate(reports) if len(r.ids) or len(r.tentative))
+    segments = segment_scan(ANGLES, scan_of(grid, origin, [walker[first]]), origin, grid,
+                            explained, p.cluster_gap, p.min_points, p.split_depth)
+    seen = np.hypot(*(segments.centers - walker[first]).T) < RADIUS
+    assert seen.sum() == 1 and segments.behind_map[seen][0], first   # still partly hidden
+    rows = np.vstack([reports[first].tracked, reports[first].tentative])
+    assert rows[0, 3] < -0.1, rows
+    final = np.vstack([reports[-1].tracked, reports[-1].tentative])
+    assert len(final) == 1 and math.hypot(final[0, 2], final[0, 3] + 0.5) < 0.1, final
+
+
+@pytest.mark.parametrize('circle, speed', [(((9.0, 11.2), 0.3), 0.6), (((8.5, 10.9), 0.2), 1.0)])
+def test_a_static_object_coming_out_from_behind_a_wall_is_not_a_mover(circle, speed):
+    """The laser drives past the block of the test above: the visible part of an unknown
+    object behind it grows, as a person's would, but it never walks."""
+    grid = open_map(pillar=(slice(105, 140), slice(60, 80)))
+    tracker = ScanTracker(grid)
+    for k in range(int(6.0 / speed / DT)):
+        origin = np.array([3.0, 14.0 - speed * k * DT, 0.0])
+        world = World(grid, RobotSpec(radius=0.1), origin, unknown_obstacles=[Circle(*circle)],
+                      scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
+        assert tracker.update(ANGLES, world.scan().ranges, origin, k * DT).accepted
+        report = tracker.report()
+        assert len(report.ids) == 0 and len(report.tentative) == 0, (k, report.tentative)
+
+
+def test_only_a_wall_return_beside_a_candidate_puts_it_behind_the_map():
+    """Behind the map: hidden by a return the map explains, not by an unknown object nor by
+    the edge of a partial view."""
+    p = TrackerParams()
+    origin = np.array([3.0, 10.0, 0.0])
+    person = [(9.0, 10.7)]
+
+    def candidate(grid, ranges, angles=ANGLES):
+        explained = map_explained_mask(grid, p.map_tolerance)
+        segments = segment_scan(angles, ranges, origin, grid, explained, p.cluster_gap,
+                                p.min_points, p.split_depth)
+        seen = np.hypot(*(segments.centers - person[0]).T) < 0.5
+        assert seen.sum() == 1
+        return bool(segments.occluded[seen][0]), bool(segments.behind_map[seen][0])
+
+    walled = open_map(pillar=(slice(105, 140), slice(60, 80)))   # hides their upper part
+    assert candidate(walled, scan_of(walled, origin, person)) == (True, True)
+    # in the open: partly hidden by a box (not on the map), or by the edge of the view
+    grid = open_map()
+    box = ray_circle_distances(origin[:2], DIRECTIONS, np.array([[6.94, 10.69]]),
+                               np.array([0.14]))
+    assert candidate(grid, np.minimum(scan_of(grid, origin, person), box)) == (True, False)
+    view = ANGLES <= 0.13
+    assert candidate(grid, scan_of(grid, origin, person)[view], ANGLES[view]) == (True, False)
+    assert candidate(grid, scan_of(grid, origin, person)) == (False, False)
+
+
 def test_walkers_who_part_do_not_swing_a_track_the_wrong_way():
     grid = open_map()
     origin = np.array([3.0, 10.0, 0.0])

@@ -69,6 +69,10 @@ class Segments:
         more than the gap), or it touches the edge of a partial field of
         view: part of the object may be hidden, so its centre and radius are
         biased.
+    behind_map : ndarray, bool, shape (C,)
+        Occluded by a return the map explains (not by an unknown object, nor
+        by the edge of the view): it may be stepping out from behind a wall
+        corner.
     unexplained : ndarray, float64, shape (U, 2)
         Every hit point the map does not explain [m] (candidates or not).
     labels : ndarray, int64, shape (U,)
@@ -82,6 +86,7 @@ class Segments:
     radii: np.ndarray
     counts: np.ndarray
     occluded: np.ndarray
+    behind_map: np.ndarray
     unexplained: np.ndarray
     labels: np.ndarray
     beam_spacing: float
@@ -230,12 +235,16 @@ def segment_scan(angles, ranges, origin, grid, explained_mask, gap, min_points, 
     sight = 0.5 * (points[first] + points[last]) - origin[:2]
     direction = sight / np.maximum(np.hypot(*sight.T), 1e-9)[:, None]
     centers, radii = _circles_seen(origin, 0.5 * count * beam_spacing, nearest, direction)
-    occluded = _nearer_beside(ranges, first - 1, first, gap, full_circle) \
-        | _nearer_beside(ranges, last + 1, last, gap, full_circle)
+    before = _nearer_beside(ranges, first - 1, first, gap, full_circle)
+    after = _nearer_beside(ranges, last + 1, last, gap, full_circle)
+    on_map = valid & ~own
+    behind_map = (before & _on_map_beside(on_map, first - 1, full_circle)) \
+        | (after & _on_map_beside(on_map, last + 1, full_circle))
     keep = count >= min_points
     renumber = np.where(keep, np.cumsum(keep) - 1, -1)
     return Segments(centers=centers[keep], radii=radii[keep], counts=count[keep],
-                    occluded=occluded[keep], unexplained=unexplained,
+                    occluded=(before | after)[keep], behind_map=behind_map[keep],
+                    unexplained=unexplained,
                     labels=renumber[label[own]], beam_spacing=beam_spacing)
 
 
@@ -280,7 +289,8 @@ def split_among(segments, origin, centers, radii, reach, min_points, widest, mer
         edge; returns within reach of none form one more part). A circle's
         part is that circle refitted to its returns (:func:`_refit`: its
         radius kept; partly hidden or not, its centre is unbiased), occluded
-        only if the candidate was; the rest is taken for a circle as in
+        only if the candidate was; every part is behind the map if the
+        candidate was; the rest is taken for a circle as in
         :func:`segment_scan`, occluded unless nearest the laser. Other
         candidates are kept as they were, in order, before the parts.
     """
@@ -348,6 +358,8 @@ def split_among(segments, origin, centers, radii, reach, min_points, widest, mer
         radii=np.concatenate([segments.radii[kept], part_radii[keep_part]]),
         counts=np.concatenate([segments.counts[kept], counts[keep_part]]),
         occluded=np.concatenate([segments.occluded[kept], part_occluded[keep_part]]),
+        behind_map=np.concatenate([segments.behind_map[kept],
+                                   segments.behind_map[parent][keep_part]]),
         unexplained=segments.unexplained, labels=labels, beam_spacing=segments.beam_spacing)
 
 
@@ -424,7 +436,15 @@ def _nearer_beside(ranges, beside, own, gap, full_circle):
     return nearer | (outside & (not full_circle))
 
 
+def _on_map_beside(on_map, beside, full_circle):
+    """Whether beam ``beside`` returned from the map (False beyond the ends of a partial view)."""
+    n = len(on_map)
+    in_view = full_circle | ((beside >= 0) & (beside < n))
+    return in_view & on_map[np.mod(beside, n)]
+
+
 def _empty(unexplained, beam_spacing):
     return Segments(centers=np.zeros((0, 2)), radii=np.zeros(0), counts=np.zeros(0, np.int64),
-                    occluded=np.zeros(0, bool), unexplained=unexplained,
+                    occluded=np.zeros(0, bool), behind_map=np.zeros(0, bool),
+                    unexplained=unexplained,
                     labels=np.full(len(unexplained), -1, np.int64), beam_spacing=beam_spacing)

@@ -35,9 +35,12 @@ controller avoids (:attr:`Observation.tracked`):
    start tentative tracks (at rest, velocity uncertain); a
    tentative track that misses a scan, or any track unseen for
    ``coast_time``, is dropped. A person may walk for seconds partly hidden
-   behind another: a partly hidden candidate just behind a moving track
-   (their angular extents, seen from the laser, within two beams) and at
-   least :data:`HIDDEN_BIRTH_RADIUS` across also starts a track, which such
+   behind another, or be seen coming out from behind a wall corner for a
+   second before they are seen whole: a partly hidden candidate just behind a
+   moving track (their angular extents, seen from the laser, within two
+   beams), or hidden by a return the map explains
+   (:attr:`scan_segments.Segments.behind_map`), and at least
+   :data:`HIDDEN_BIRTH_RADIUS` across also starts a track, which such
    candidates then correct, with the hidden part's bias as extra noise
    (:data:`HIDDEN_BIAS_FRACTION` of the track's radius) and the larger of
    the two radii (what is seen is a lower bound). Uncovering a static object
@@ -140,9 +143,9 @@ MERGE_RATIO = 1.2
 #: Cost of a forbidden (gated out) pairing in the assignment; any gated-in
 #: cost is below ``gate``.
 FORBIDDEN_COST = 1e9
-#: A partly hidden candidate behind a moving track starts a track only from
-#: this radius [m] on: a sliver of a few returns beside a walker is as often
-#: the edge of whatever stands behind them.
+#: A partly hidden candidate behind a moving track or a wall starts a track
+#: only from this radius [m] on: a sliver of a few returns beside a walker is
+#: as often the edge of whatever stands behind them.
 HIDDEN_BIRTH_RADIUS = 0.1
 #: Standard deviation of a partly hidden candidate's centre, as a fraction of
 #: its track's radius (added to ``measurement_std``).
@@ -353,7 +356,7 @@ class ScanTracker:
         self._tentative = np.zeros(0, bool)  # a tentative mover (module notes, step 6)
         self._slow_since = np.zeros(0)     # since when a track is below half min_speed [s]
         self._stays = np.zeros(0, bool)    # its returns stayed put at its last match (step 5)
-        self._born_hidden = np.zeros(0, bool)  # born partly hidden behind a mover (step 4)
+        self._born_hidden = np.zeros(0, bool)  # born partly hidden (step 4)
         self._staying_since = np.zeros(0)  # since when they have [s] (inf: they have not)
         self._turn_var = np.zeros(0)       # heading diffusion estimate [rad^2 / s]
         self._anchors = np.zeros((0, 2, 2))  # positions at the last two window ends [m]
@@ -399,14 +402,15 @@ class ScanTracker:
         objects = segments.radii <= p.max_object_radius
         centers, radii = segments.centers[objects], segments.radii[objects]
         occluded, staying = segments.occluded[objects], staying[objects]
-        behind = occluded.copy()
-        behind[occluded] = self._behind_movers(centers[occluded], radii[occluded], origin[:2],
-                                               segments.beam_spacing)
+        # partly hidden behind a mover or a wall corner: they may start a track (step 4)
+        behind = occluded & segments.behind_map[objects]
+        behind[occluded] |= self._behind_movers(centers[occluded], radii[occluded], origin[:2],
+                                                segments.beam_spacing)
         track_of = self._associate(centers, np.where(occluded, np.nan, radii))
         matched = track_of >= 0
         whole = matched & ~occluded
         self._correct(track_of[whole], centers[whole], radii[whole])
-        # a track born partly hidden behind a mover follows such glimpses of it
+        # a track born partly hidden follows such glimpses of it
         glimpsed = matched & behind
         glimpsed[glimpsed] = self._born_hidden[track_of[glimpsed]]
         tracks = track_of[glimpsed]
