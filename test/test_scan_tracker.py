@@ -344,19 +344,35 @@ def test_a_walker_stepping_out_from_behind_a_wall_is_reported_before_seen_whole(
     assert len(final) == 1 and math.hypot(final[0, 2], final[0, 3] + 0.5) < 0.1, final
 
 
-@pytest.mark.parametrize('circle, speed', [(((9.0, 11.2), 0.3), 0.6), (((8.5, 10.9), 0.2), 1.0)])
-def test_a_static_object_coming_out_from_behind_a_wall_is_not_a_mover(circle, speed):
-    """The laser drives past the block of the test above: the visible part of an unknown
-    object behind it grows, as a person's would, but it never walks."""
+@pytest.mark.parametrize('circle', [((9.0, 11.2), 0.3), ((8.5, 10.9), 0.2),
+                                    ((9.5, 11.5), 0.4), ((10.0, 12.0), 0.3)])
+def test_a_static_object_coming_out_from_behind_a_wall_is_not_a_mover(circle):
+    """The laser drives past the block of the test above, and the visible part of an unknown
+    object behind it grows as a person's would. Its track, started on the first glimpses,
+    never moves; like any static object whose centre estimate wanders as the view changes,
+    it may be a tentative mover, for at most 1 s."""
     grid = open_map(pillar=(slice(105, 140), slice(60, 80)))
-    tracker = ScanTracker(grid)
-    for k in range(int(6.0 / speed / DT)):
-        origin = np.array([3.0, 14.0 - speed * k * DT, 0.0])
-        world = World(grid, RobotSpec(radius=0.1), origin, unknown_obstacles=[Circle(*circle)],
-                      scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
-        assert tracker.update(ANGLES, world.scan().ranges, origin, k * DT).accepted
-        report = tracker.report()
-        assert len(report.ids) == 0 and len(report.tentative) == 0, (k, report.tentative)
+    p = TrackerParams()
+    explained = map_explained_mask(grid, p.map_tolerance)
+    for speed in (0.6, 1.0):
+        tracker = ScanTracker(grid)
+        glimpses, tentative = 0, []
+        for k in range(int(6.0 / speed / DT)):
+            origin = np.array([3.0, 12.0 - speed * k * DT, 0.0])
+            world = World(grid, RobotSpec(radius=0.1), origin,
+                          unknown_obstacles=[Circle(*circle)],
+                          scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
+            ranges = world.scan().ranges
+            segments = segment_scan(ANGLES, ranges, origin, grid, explained, p.cluster_gap,
+                                    p.min_points, p.split_depth)
+            glimpses += bool(np.any(segments.behind_map & (segments.radii >= 0.1)))
+            assert tracker.update(ANGLES, ranges, origin, k * DT).accepted
+            report = tracker.report()
+            assert len(report.ids) == 0, (speed, k, report.states)
+            if len(report.tentative):
+                tentative.append(k * DT)
+        assert glimpses > 0, speed             # the wall did hide part of it for a while
+        assert not tentative or tentative[-1] - tentative[0] <= 1.0, (speed, tentative)
 
 
 def test_only_a_wall_return_beside_a_candidate_puts_it_behind_the_map():
