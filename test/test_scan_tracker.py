@@ -53,6 +53,18 @@ def run(tracker, grid, origin, positions, radius=RADIUS):
     return reports
 
 
+def segments_of(grid, ranges, origin, angles=ANGLES):
+    """The tracker's object candidates of one scan, with its default parameters."""
+    p = TrackerParams()
+    return segment_scan(angles, ranges, origin, grid, map_explained_mask(grid, p.map_tolerance),
+                        p.cluster_gap, p.min_points, p.split_depth)
+
+
+def walled_map():
+    """:func:`open_map` with a block at x 6-8 m, y 10.5-14 m."""
+    return open_map(pillar=(slice(105, 140), slice(60, 80)))
+
+
 def test_walker_crossing_is_tracked_with_its_velocity():
     grid = open_map()
     origin = np.array([3.0, 10.0, 0.0])
@@ -326,16 +338,13 @@ def test_a_walker_stepping_out_from_behind_a_wall_is_reported_before_seen_whole(
     standing laser; for 1 s only a growing part of them shows beside the block's returns.
     Started on those glimpses, their track is reported while they are still partly hidden,
     walking the right way, and ends on their true velocity."""
-    grid = open_map(pillar=(slice(105, 140), slice(60, 80)))
-    explained = map_explained_mask(grid, TrackerParams().map_tolerance)
-    p = TrackerParams()
+    grid = walled_map()
     origin = np.array([3.0, 10.0, 0.0])
     t = np.arange(60) * DT
     walker = np.stack([np.full_like(t, 9.0), 13.0 - 0.5 * t], axis=1)
     reports = run(ScanTracker(grid), grid, origin, walker[:, None, :])
     first = next(k for k, r in enumerate(reports) if len(r.ids) or len(r.tentative))
-    segments = segment_scan(ANGLES, scan_of(grid, origin, [walker[first]]), origin, grid,
-                            explained, p.cluster_gap, p.min_points, p.split_depth)
+    segments = segments_of(grid, scan_of(grid, origin, [walker[first]]), origin)
     seen = np.hypot(*(segments.centers - walker[first]).T) < RADIUS
     assert seen.sum() == 1 and segments.behind_map[seen][0], first   # still partly hidden
     rows = np.vstack([reports[first].tracked, reports[first].tentative])
@@ -351,9 +360,7 @@ def test_a_static_object_coming_out_from_behind_a_wall_is_not_a_mover(circle):
     object behind it grows as a person's would. Its track, started on the first glimpses,
     never moves; like any static object whose centre estimate wanders as the view changes,
     it may be a tentative mover, for at most 1 s."""
-    grid = open_map(pillar=(slice(105, 140), slice(60, 80)))
-    p = TrackerParams()
-    explained = map_explained_mask(grid, p.map_tolerance)
+    grid = walled_map()
     for speed in (0.6, 1.0):
         tracker = ScanTracker(grid)
         glimpses, tentative = 0, []
@@ -363,8 +370,7 @@ def test_a_static_object_coming_out_from_behind_a_wall_is_not_a_mover(circle):
                           unknown_obstacles=[Circle(*circle)],
                           scan_config=ScanConfig(beams=BEAMS, range_max=12.0))
             ranges = world.scan().ranges
-            segments = segment_scan(ANGLES, ranges, origin, grid, explained, p.cluster_gap,
-                                    p.min_points, p.split_depth)
+            segments = segments_of(grid, ranges, origin)
             glimpses += bool(np.any(segments.behind_map & (segments.radii >= 0.1)))
             assert tracker.update(ANGLES, ranges, origin, k * DT).accepted
             report = tracker.report()
@@ -378,19 +384,16 @@ def test_a_static_object_coming_out_from_behind_a_wall_is_not_a_mover(circle):
 def test_only_a_wall_return_beside_a_candidate_puts_it_behind_the_map():
     """Behind the map: hidden by a return the map explains, not by an unknown object nor by
     the edge of a partial view."""
-    p = TrackerParams()
     origin = np.array([3.0, 10.0, 0.0])
     person = [(9.0, 10.7)]
 
     def candidate(grid, ranges, angles=ANGLES):
-        explained = map_explained_mask(grid, p.map_tolerance)
-        segments = segment_scan(angles, ranges, origin, grid, explained, p.cluster_gap,
-                                p.min_points, p.split_depth)
+        segments = segments_of(grid, ranges, origin, angles)
         seen = np.hypot(*(segments.centers - person[0]).T) < 0.5
         assert seen.sum() == 1
         return bool(segments.occluded[seen][0]), bool(segments.behind_map[seen][0])
 
-    walled = open_map(pillar=(slice(105, 140), slice(60, 80)))   # hides their upper part
+    walled = walled_map()                         # the block hides their upper part
     assert candidate(walled, scan_of(walled, origin, person)) == (True, True)
     # in the open: partly hidden by a box (not on the map), or by the edge of the view
     grid = open_map()
@@ -493,16 +496,13 @@ def test_a_walker_partly_hidden_behind_another_is_tracked_while_still_hidden():
     tracked while partly hidden (3 s) and walked into the robot 0.7 s after coming out.
     """
     grid = open_map()
-    explained = map_explained_mask(grid, TrackerParams().map_tolerance)
-    p = TrackerParams()
     origin = np.array([3.0, 10.0, 0.0])
     t = np.arange(40) * DT
     nearer = np.stack([6.0 - 0.3 * t, np.full_like(t, 10.0)], axis=1)
     hidden = np.stack([10.0 - 0.6 * t, np.full_like(t, 10.84)], axis=1)
     reports = run(ScanTracker(grid), grid, origin, np.stack([nearer, hidden], axis=1))
     for k in range(len(t)):
-        segments = segment_scan(ANGLES, scan_of(grid, origin, [nearer[k], hidden[k]]), origin,
-                                grid, explained, p.cluster_gap, p.min_points, p.split_depth)
+        segments = segments_of(grid, scan_of(grid, origin, [nearer[k], hidden[k]]), origin)
         seen = np.hypot(*(segments.centers - hidden[k]).T) < RADIUS
         assert seen.sum() == 1 and segments.occluded[seen][0], k     # partly hidden throughout
     first = next(k for k, r in enumerate(reports)

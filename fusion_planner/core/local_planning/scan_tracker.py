@@ -403,7 +403,7 @@ class ScanTracker:
         centers, radii = segments.centers[objects], segments.radii[objects]
         occluded, staying = segments.occluded[objects], staying[objects]
         # partly hidden behind a mover or a wall corner: they may start a track (step 4)
-        behind = occluded & segments.behind_map[objects]
+        behind = segments.behind_map[objects]          # a copy; implies occluded
         behind[occluded] |= self._behind_movers(centers[occluded], radii[occluded], origin[:2],
                                                 segments.beam_spacing)
         track_of = self._associate(centers, np.where(occluded, np.nan, radii))
