@@ -34,7 +34,8 @@ from sensor_msgs.msg import LaserScan  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
-from fusion_planner.core.local_planning import apf, follow  # noqa: E402
+from fusion_planner.core.errors import PlanningError  # noqa: E402
+from fusion_planner.core.local_planning import apf, field_follower, follow  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
 from fusion_planner.ros import fuzz  # noqa: E402
 from fusion_planner.ros import local_planner as lp  # noqa: E402
@@ -170,6 +171,17 @@ def test_idle_planner_sends_one_zero_command_then_nothing(robot):
     robot.wait(1.0)
     after = robot.commands_since(t0)
     assert len(after) == 1 and not moving(after), 'one stop, then silence'
+
+
+def test_a_node_without_a_map_does_not_take_a_replan_it_cannot_make_for_a_proof(robot):
+    """Traced in CI: a node given a plan and no map, starved of CPU by the fuzzing, met a
+    local minimum; its replan failed as if a search had proved the goal unreachable, and
+    the node ended the run with no_path. Without a map nothing is proved: it carries on."""
+    robot.publish_plan()
+    assert robot.wait_until(lambda: moving(robot.commands_since(0.0)), 5.0), 'never moved'
+    with pytest.raises(PlanningError, match='no map') as failed:
+        robot.planner._replan(np.zeros(2), np.array([2.0, 0.0]), np.zeros((0, 2)))
+    assert not isinstance(failed.value, field_follower.UNREACHABLE)
 
 
 def test_a_run_that_ends_is_reported_once_with_its_plan_stamp(robot):

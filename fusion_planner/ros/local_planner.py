@@ -118,7 +118,7 @@ from sensor_msgs.msg import LaserScan, TimeReference
 from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
-from fusion_planner.core.errors import InvalidInput, NoValidPathCouldBeFound
+from fusion_planner.core.errors import InvalidInput, PlanningError
 from fusion_planner.core.global_planning.planner import PlannerConfig
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
 from fusion_planner.core.local_planning.replanning import GridReplanner
@@ -608,7 +608,8 @@ class LocalPlannerNode(ManagedNode):
         """
         correction = self._plan_correction
         if self._replanner is None or correction is None:
-            raise NoValidPathCouldBeFound('no map or no localization received: cannot replan')
+            # no search was made: the goal is not proven unreachable, the robot carries on
+            raise PlanningError('no map or no localization received: cannot replan')
         to_map = functools.partial(frames.transform_points, correction)
         to_odom = functools.partial(frames.transform_points, frames.inverse(correction))
         path, key_nodes = self._replanner(to_map(start)[0], to_map(goal)[0],
