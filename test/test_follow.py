@@ -422,6 +422,25 @@ def test_evasion_keeps_a_safe_command():
     assert evade_now((0.5, 0.1), np.zeros((0, 5))) == (0.5, 0.1, False)
 
 
+def test_an_evading_robot_beside_its_goal_does_not_run_past_it():
+    """The goal is 1 m ahead-left of a robot driving +x at 0.6 m/s; the field turns it on the
+    spot towards the goal, into the way of a person coming down at 0.7 m/s. Measured along
+    the goal's direction, running on at full speed looks like the most progress (1.9 m east,
+    past the goal); measured towards the goal, the evasion keeps nearer it."""
+    goal = np.array([0.4, 0.9])
+    reach = math.hypot(*goal)
+    person = np.array([[-0.13, 1.97, 0.28, -0.62, 0.25]])
+    pose, velocity = np.zeros(3), np.array([0.6, 0.0])
+    ends = {}
+    for distance in (math.inf, reach):
+        v, omega, evading = evasion.evade(pose, velocity, (0.0, 2.0), goal / reach, person,
+                                          np.zeros((0, 2)), params(), reach=distance)
+        assert evading
+        ends[distance] = evasion.rollout(pose, velocity, np.array([[v, omega]]), params())[0, -1]
+    assert ends[math.inf][0] > 1.5                           # the unbounded measure runs past
+    assert np.hypot(*(ends[reach] - goal)) < np.hypot(*(ends[math.inf] - goal)) - 0.5
+
+
 def evade_moving(speed, tracked):
     """evasion.evade for a robot at the origin driving +x at ``speed`` [m/s] and asked to go on."""
     return evasion.evade(np.zeros(3), np.array([speed, 0.0]), (speed, 0.0), np.array([1.0, 0.0]),

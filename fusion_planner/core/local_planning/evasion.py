@@ -67,8 +67,10 @@ Evasion
     :data:`TURN_BACK_SLACK` on a brisk arc clear of the grown obstacles: going
     round a person); then the latest predicted
     contact wins, then the least intrusion into the margin (its time
-    integral [m s]), then the most progress along the desired direction,
-    then the turn rate nearest the controller's. An :class:`Evader` (the
+    integral [m s]), then the most progress along the desired direction
+    (towards the goal, when the rollouts get as far as it: a robot
+    evading beside its goal does not run past it), then the turn rate
+    nearest the controller's. An :class:`Evader` (the
     controllers' evasion) keeps a forward target or pivot it chose while
     that is still allowed, as late in contact as the best and within
     :data:`KEEP_INTRUSION` of its intrusion: the rollouts assume the
@@ -571,17 +573,19 @@ class Evader:
         self.kept = None
         self.backing = False
 
-    def evade(self, pose, velocity, command, desired, tracked, points, params, turn_stds=None):
+    def evade(self, pose, velocity, command, desired, tracked, points, params, turn_stds=None,
+              reach=math.inf):
         """:func:`evade`, keeping the last forward choice while it is as good as the best."""
         v, omega, evading, chosen = _evade(pose, velocity, command, desired, tracked, points,
-                                           params, turn_stds, self.kept, self.backing)
+                                           params, turn_stds, self.kept, self.backing, reach)
         forward = chosen is not None and (chosen[0] == 'pivot' or chosen[1] >= 0.0)
         self.kept = chosen if evading and forward else None
         self.backing = evading and not forward
         return v, omega, evading
 
 
-def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=None):
+def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=None,
+          reach=math.inf):
     """Keep a command when it is safe; otherwise the best evasive one.
 
     Parameters
@@ -604,6 +608,10 @@ def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=N
     turn_stds : ndarray, shape (K,), optional
         Heading diffusion [rad / sqrt(s)] of each tracked obstacle; NaN or
         none: :data:`TURN_STD`.
+    reach : float, optional
+        How far [m] the controller wants to go along ``desired`` (its goal's
+        distance): once the rollouts get that far, progress is measured
+        towards that point (:func:`_progress`), not along ``desired``.
 
     Returns
     -------
@@ -632,15 +640,29 @@ def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=N
     or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
     obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
-    most progress along ``desired``, then the turn rate nearest
+    most progress along ``desired`` (towards the point ``reach`` ahead), then
+    the turn rate nearest
     ``command``'s (a robot that waits keeps its heading rather than spin).
     """
     return _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
-                  None)[:3]
+                  None, reach=reach)[:3]
+
+
+def _progress(travel, desired, reach):
+    """Progress [m] ``(C,)`` of rollouts that end ``travel`` ``(C, 2)`` [m] from the robot.
+
+    Along ``desired`` (unit, or zero: no direction); but when some rollout
+    gets as far as the point ``reach`` [m] ahead along it, towards that
+    point: a robot evading beside its goal gains nothing by running past it
+    or beside it, and would have to come back.
+    """
+    if not np.any(desired) or reach > np.max(np.hypot(*travel.T)):
+        return travel @ desired
+    return reach - np.hypot(*(reach * desired - travel).T)
 
 
 def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds, kept,
-           backing=False):
+           backing=False, reach=math.inf):
     """:func:`evade` with a kept choice and the last call's backing (see :class:`Evader`).
 
     Also returns the choice made.
@@ -681,7 +703,7 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
         allowed = blocked == np.max(blocked)
     paths = held_before(paths, q, blocked)
     gaps = obstacle_gaps(paths, movers, radius, since=since, until=until)
-    progress = (paths[:, -1] - q) @ desired
+    progress = _progress(paths[:, -1] - q, desired, reach)
     soon = int(round(YIELD_SAFE_TIME / ROLLOUT_STEP))
     with_way_out = _with_way_out(allowed, q, paths, gaps, tracked, points, params)
     if with_way_out is None and safe:

@@ -720,10 +720,10 @@ class FieldFollower(ControllerBase):
                 else np.vstack([q, q + p.apf.l0 * direction])
         status = 'stuck_escaping' if self._episode is not None else 'moving'
         if direction is None:  # an exact minimum: stop; the stuck detector takes over
-            v, w = self._evade(obs, scene, (0.0, 0.0), target - q)
+            v, w = self._evade(obs, scene, (0.0, 0.0), target - q, goal_distance)
         else:
             command = self._field_command(obs, scene, direction, goal_distance)
-            v, w = self._evade(obs, scene, command, direction)
+            v, w = self._evade(obs, scene, command, direction, goal_distance)
         return Command(v, w, status, sub_goal=target.copy(), local_plan=plan)
 
     def _target_distance(self, q):
@@ -981,13 +981,14 @@ class FieldFollower(ControllerBase):
         return self._steer(heading, v_cap, obs, error=error,
                            gain=p.route_gain() if self._route is not None else None)
 
-    def _evade(self, obs, scene, command, desired):
+    def _evade(self, obs, scene, command, desired, goal_distance):
         """``command`` within the limits, or an evasive one if it runs into a moving obstacle.
 
         Only with prediction (see :mod:`fusion_planner.core.local_planning.evasion`),
         against the tracked obstacles and the tentative movers (a person
         not yet confirmed as moving is still checked against where it
-        walks); ``desired`` (2,) is the direction the controller wants to go.
+        walks); ``desired`` (2,) is the direction the controller wants to go,
+        ``goal_distance`` [m] how far (the evasion does not run past the goal).
         Then, for a route follower, the free-arc check (:meth:`_on_free_arc`).
         """
         movers = np.vstack([scene.tracked, scene.tentative])
@@ -997,7 +998,8 @@ class FieldFollower(ControllerBase):
             desired = desired / norm if norm > FORCE_EPS else np.zeros(2)
             turn_stds = np.concatenate([scene.turn_stds, np.full(len(scene.tentative), np.nan)])
             command = self._evader.evade(obs.pose, obs.velocity, command, desired, movers,
-                                         scene.all_points, self.params, turn_stds)[:2]
+                                         scene.all_points, self.params, turn_stds,
+                                         goal_distance)[:2]
             v_min = -self.params.reverse_speed()
         else:
             self._evader.forget()
