@@ -426,7 +426,7 @@ def test_an_evading_robot_beside_its_goal_does_not_run_past_it():
     """The goal is 1 m ahead-left of a robot driving +x at 0.6 m/s; the field turns it on the
     spot towards the goal, into the way of a person coming down at 0.7 m/s. Measured along
     the goal's direction, running on at full speed looks like the most progress (1.9 m east,
-    past the goal); measured towards the goal, the evasion keeps nearer it."""
+    beyond the goal); measured towards the goal, the evasion keeps nearer it."""
     goal = np.array([0.4, 0.9])
     reach = math.hypot(*goal)
     person = np.array([[-0.13, 1.97, 0.28, -0.62, 0.25]])

@@ -640,9 +640,9 @@ def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=N
     or goes on beside the person) instead of backing away or turning back. The choice is
     lexicographic: the latest predicted contact with a (grown) tracked
     obstacle, then the least intrusion into :data:`MOVING_MARGIN`, then the
-    most progress along ``desired`` (towards the point ``reach`` ahead), then
-    the turn rate nearest
-    ``command``'s (a robot that waits keeps its heading rather than spin).
+    most progress along ``desired`` (towards the point ``reach`` ahead once
+    a rollout gets that far), then the turn rate nearest ``command``'s (a
+    robot that waits keeps its heading rather than spin).
     """
     return _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
                   None, reach=reach)[:3]
