@@ -696,6 +696,39 @@ def test_the_robot_does_not_run_ahead_of_a_person_into_a_dead_end():
     assert np.min(gaps) < 1.0                                    # they did meet
 
 
+@pytest.mark.parametrize('line_x, speed', [(5.93, 0.866), (5.95, 0.8), (6.0, 0.85)])
+def test_the_robot_does_not_cut_behind_a_crossing_person_into_their_way_back(line_x, speed):
+    """A person walks out of a dead-end side corridor, across the robot's corridor 1 m ahead
+    of it, and back the way they came from its far wall: the robot waits in its corridor. It
+    used to pass behind them towards the side corridor's mouth, and the person walking back
+    drove it into the side corridor (a contact, or a robot stuck there until it gave up)."""
+    occupied = np.ones((90, 140), bool)                          # 0.1 m cells
+    occupied[35:55, 1:-1] = False                                # the corridor: y in [3.5, 5.5]
+    occupied[55:89, 52:65] = False                               # the side one: x in [5.2, 6.5]
+    person = MovingObstacle(0.2, WaypointMotion(((line_x, 8.5), (line_x, 3.8)), speed))
+    scenario = scenario_of('side-corridor', 0, GridMap(occupied, 0.1), (1.0, 4.94, 0.3),
+                           (13.0, 4.95), [person])
+    result = run_episode(scenario, 'fusion', perception='scan')
+    assert result.reached and result.collisions == 0
+    assert np.max(result.trajectory[:, 1]) < 5.5 - RADIUS + 0.05   # never in the side corridor
+
+
+def test_people_beside_walls_crossing_the_robots_way_are_checked_walking_back_longer():
+    """Of four people, only the one crossing the robot's way beside a wall is checked walking
+    back over the whole horizon: not one walking along the way, nor one crossing in the open."""
+    east = np.array([1.0, 0.0])
+    people = np.array([[2.0, 1.0, 0.0, -0.8, 0.25],        # crossing, 0.6 m from a wall
+                       [2.0, -1.0, 0.7, 0.3, 0.25],        # along the way (23 degrees off)
+                       [2.0, 4.0, -0.1, 0.8, 0.25],        # crossing, in the open
+                       [2.0, 1.5, 0.0, 0.0, 0.25]])        # standing
+    wall_distance = np.array([0.6, 0.6, 3.0, 0.6])
+    crossers = evasion._walled_crossers(people, east, wall_distance)
+    assert crossers.tolist() == [True, False, False, False]
+    assert not np.any(evasion._walled_crossers(people, np.zeros(2), wall_distance))  # no way
+    _, _, until = evasion.hypotheses(people, people, crossers)
+    assert until[4:8].tolist() == [evasion.HORIZON] + [evasion.TURN_ROUND_HORIZON] * 3
+
+
 def test_a_robot_pushed_off_its_route_beside_a_wall_end_gets_back_on_it_first():
     """Pushed 0.9 m off its route, beside a thin wall whose end the route goes round: every
     line to a carrot past the end grazes the wall, so the robot drives back onto the route

@@ -24,7 +24,9 @@ Check
     A command is safe when its rollout keeps :data:`MOVING_MARGIN` from
     every grown obstacle, and for the first :data:`TURN_ROUND_HORIZON` of
     it also from each obstacle walking back at its speed (a person ahead may
-    turn round), and from each obstacle deflected by another it is about to
+    turn round; over the whole horizon for a person beside a wall who
+    crosses the robot's way, :func:`_walled_crossers`), and from each
+    obstacle deflected by another it is about to
     meet (people do not walk through each other: from the moment their
     predicted discs come within :data:`MEETING_MARGIN`, its velocity
     reflected about the line of their centres; :func:`hypotheses`), and
@@ -133,6 +135,12 @@ UNCERTAINTY_RATE = 0.1
 #: checked walking back at its speed. Long enough for the robot to stop from
 #: its top speed; short enough not to hold it far behind a person it follows.
 TURN_ROUND_HORIZON = 1.0
+
+#: A tracked obstacle whose heading is within 60 degrees of the robot's
+#: desired direction, or of its opposite, walks along the robot's way
+#: (cosine of that angle): one the robot may follow or meet head-on.
+#: Others cross it (:func:`_walled_crossers`).
+ALONG_WAY_COS = 0.5
 
 #: People give way a little before they would touch, and a prediction that
 #: has two of them pass within a few centimetres is as likely a meeting: two
@@ -244,19 +252,48 @@ def _times():
     return ROLLOUT_STEP * np.arange(1, int(round(HORIZON / ROLLOUT_STEP)) + 1)
 
 
-def _open_turns(tracked, turn_stds, walls):
+def _wall_distance(tracked, walls):
+    """Distance [m] ``(K,)`` from each tracked obstacle's centre to the nearest static point.
+
+    ``walls`` (M, 2) [m]; ``inf`` without any.
+    """
+    if len(walls):
+        return cKDTree(walls).query(tracked[:, 0:2])[0]
+    return np.full(len(tracked), np.inf)
+
+
+def _open_turns(turn_stds, wall_distance):
     """``turn_stds`` (K,) [rad/sqrt(s)], at least :data:`TURN_STD` for people in the open.
 
     A person farther than :data:`OPEN_CLEARANCE` from every static point
-    (``walls``, (M, 2) [m]) may turn any way at any moment, whatever the
-    tracker measured of its last few seconds; one walking down a corridor
-    keeps its own (a person walking straight need not hold the robot back).
+    (``wall_distance`` (K,) [m], :func:`_wall_distance`) may turn any way at
+    any moment, whatever the tracker measured of its last few seconds; one
+    walking down a corridor keeps its own (a person walking straight need
+    not hold the robot back).
     """
-    if len(walls):
-        room = cKDTree(walls).query(tracked[:, 0:2])[0]
-    else:
-        room = np.full(len(tracked), np.inf)
-    return np.where(room > OPEN_CLEARANCE, np.maximum(turn_stds, TURN_STD), turn_stds)
+    return np.where(wall_distance > OPEN_CLEARANCE, np.maximum(turn_stds, TURN_STD), turn_stds)
+
+
+def _walled_crossers(tracked, desired, wall_distance):
+    """Whether each tracked obstacle ``(K,)`` is checked walking back over the whole horizon.
+
+    Those within :data:`OPEN_CLEARANCE` of a static point (``wall_distance``
+    (K,) [m], :func:`_wall_distance`) whose heading crosses the robot's way:
+    more than 60 degrees off ``desired`` (unit, (2,); zero: no way, none
+    cross) and off its opposite (:data:`ALONG_WAY_COS`). Beside a wall a person's
+    sampled futures keep the turns measured of them, and walking along or
+    across a corridor they mostly go on or turn round; one who crossed in
+    front of the robot and turns round walks back along the trail the robot
+    would pass behind them on. In the open the sampled futures cover turns
+    any way; and a person walking along the robot's way is checked walking
+    back for :data:`TURN_ROUND_HORIZON` only, or the robot could not
+    follow them.
+    """
+    if not np.any(desired):
+        return np.zeros(len(tracked), bool)
+    speed = np.hypot(tracked[:, 2], tracked[:, 3])
+    crossing = np.abs(tracked[:, 2:4] @ desired) < ALONG_WAY_COS * speed
+    return crossing & (wall_distance <= OPEN_CLEARANCE)
 
 
 def _risk(paths, futures, tracked, radius):
@@ -406,7 +443,7 @@ def obstacle_gaps(paths, tracked, robot_radius, growth=UNCERTAINTY_RATE, since=N
     return gaps.min(axis=2)
 
 
-def hypotheses(tracked, others):
+def hypotheses(tracked, others, walking_back=None):
     """Each tracked obstacle as it goes on, as it would walk back, and as another deflects it.
 
     Parameters
@@ -416,6 +453,9 @@ def hypotheses(tracked, others):
     others : ndarray, shape (N, 5)
         Every tracked obstacle (``tracked`` among them), any of which may
         meet one of ``tracked``.
+    walking_back : ndarray of bool, shape (K,), optional
+        The obstacles checked walking back over the whole horizon, not only
+        :data:`TURN_ROUND_HORIZON` (default none).
 
     Returns
     -------
@@ -427,8 +467,8 @@ def hypotheses(tracked, others):
         back so that ``x + t vx`` passes where they meet).
     since, until : ndarray, shape (2K + D,)
         Look-ahead [s] from which and up to which each counts: the whole
-        horizon, then up to :data:`TURN_ROUND_HORIZON`, then from the
-        meeting.
+        horizon, then up to :data:`TURN_ROUND_HORIZON` (the whole horizon
+        where ``walking_back``), then from the meeting.
     """
     meeting, normal = _meetings(tracked, others)
     into = np.sum(tracked[:, 2:4] * normal, axis=1)          # < 0: walking into the other
@@ -441,8 +481,11 @@ def hypotheses(tracked, others):
     back = tracked.copy()
     back[:, 2:4] *= -1.0
     count = len(tracked)
+    back_until = np.full(count, TURN_ROUND_HORIZON)
+    if walking_back is not None:
+        back_until[walking_back] = HORIZON
     since = np.concatenate([np.zeros(2 * count), meeting[deflected]])
-    until = np.concatenate([np.full(count, HORIZON), np.full(count, TURN_ROUND_HORIZON),
+    until = np.concatenate([np.full(count, HORIZON), back_until,
                             np.full(len(deflected), HORIZON)])
     return np.vstack([tracked, back, after]), since, until
 
@@ -597,7 +640,8 @@ def evade(pose, velocity, command, desired, tracked, points, params, turn_stds=N
     command : tuple of float
         The controller's ``v, omega`` [m/s, rad/s].
     desired : ndarray, shape (2,)
-        Unit vector the controller wants to go along (progress measure).
+        Unit vector the controller wants to go along (progress measure, and
+        the way people beside walls may cross: :func:`_walled_crossers`).
     tracked : ndarray, shape (K, 5)
         Tracked obstacles ``x, y, vx, vy, radius``, finite; ``K >= 0``.
     points : ndarray, shape (M, 2)
@@ -675,9 +719,11 @@ def _evade(pose, velocity, command, desired, tracked, points, params, turn_stds,
     turn_stds = np.full(len(relevant), np.nan) if turn_stds is None \
         else np.asarray(turn_stds, float)
     turn_stds = np.where(np.isfinite(turn_stds), turn_stds, TURN_STD)[relevant]
-    movers, since, until = hypotheses(tracked, everyone)
     walls = points_off_circles(points, tracked[:, 0:2], tracked[:, 4])
-    turns = _open_turns(tracked, turn_stds, walls)
+    wall_distance = _wall_distance(tracked, walls)
+    movers, since, until = hypotheses(tracked, everyone,
+                                      _walled_crossers(tracked, desired, wall_distance))
+    turns = _open_turns(turn_stds, wall_distance)
     futures = walker_futures.sample_futures(tracked, _times(), turns, walls)
     nominal = np.array([command], dtype=float)
     radius = params.robot_radius
