@@ -280,14 +280,14 @@ def _walled_crossers(tracked, desired, wall_distance):
     Those within :data:`OPEN_CLEARANCE` of a static point (``wall_distance``
     (K,) [m], :func:`_wall_distance`) whose heading crosses the robot's way:
     more than 60 degrees off ``desired`` (unit, (2,); zero: no way, none
-    cross) and off its opposite (:data:`ALONG_WAY_COS`). Beside a wall a person's
-    sampled futures keep the turns measured of them, and walking along or
-    across a corridor they mostly go on or turn round; one who crossed in
-    front of the robot and turns round walks back along the trail the robot
-    would pass behind them on. In the open the sampled futures cover turns
-    any way; and a person walking along the robot's way is checked walking
-    back for :data:`TURN_ROUND_HORIZON` only, or the robot could not
-    follow them.
+    cross) and off its opposite (:data:`ALONG_WAY_COS`). Beside a wall a
+    person's sampled futures keep the turns measured of them, and walking
+    along or across a corridor they mostly go on or turn round; one who
+    crossed in front of the robot and turns round walks back along the
+    trail the robot would pass behind them on. In the open the sampled
+    futures cover turns any way; and a person walking along the robot's way
+    is checked walking back for :data:`TURN_ROUND_HORIZON` only, or the
+    robot could not follow them.
     """
     if not np.any(desired):
         return np.zeros(len(tracked), bool)
