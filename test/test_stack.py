@@ -97,7 +97,8 @@ def test_cancel_stops_the_robot_and_nothing_resumes(context, scenario, tmp_path)
         assert cancel.wait_for_service(timeout_sec=WAIT_S)
         future = cancel.call_async(Trigger.Request())
         assert run.wait_for(future.done, WAIT_S) and future.result().success
-        assert run.wait_for(lambda: outcomes == ['cancelled'], WAIT_S)
+        assert run.wait_for(lambda: outcomes == ['cancelled'], WAIT_S), \
+            f'goal outcomes heard: {outcomes}'
         stopped_at = run.recorder.sim_time + 1.0  # braking takes well under a second
         assert run.wait_for(lambda: run.recorder.sim_time > stopped_at, WAIT_S)
         where = run.recorder.poses[-1]
