@@ -1,4 +1,8 @@
-"""The compiled distance transform equals scipy's, bit for bit."""
+"""The compiled distance transform equals scipy's, bit for bit, and loads before it is needed."""
+
+import pathlib
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -8,6 +12,8 @@ from scipy import ndimage
 
 from fusion_planner.core import distance_transform
 from fusion_planner.core.grid import GridMap
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
 
 pytestmark = pytest.mark.skipif(not distance_transform.AVAILABLE, reason='numba is not installed')
 
@@ -48,3 +54,20 @@ def test_clearance_uses_it_and_keeps_its_values():
     clearance = GridMap(occupied, 0.05).clearance
     expected = np.sqrt(_scipy_squared(occupied)) * 0.05
     assert np.array_equal(clearance, expected)
+
+
+def test_load_compiled_loops_loads_the_transform_and_the_search_in_a_fresh_process():
+    """What a node does while it configures, so that no first map, plan or step stalls."""
+    code = (
+        'from fusion_planner.core import distance_transform\n'
+        'from fusion_planner.core.global_planning import kernel\n'
+        'from fusion_planner.core.global_planning.planner import PlannerConfig, '
+        'load_compiled_loops\n'
+        'assert distance_transform._ROWS._compiled is None and not kernel._compiled\n'
+        'load_compiled_loops(PlannerConfig(robot_radius=0.2))\n'
+        'print(len(distance_transform._ROWS._compiled.signatures), len(kernel._run.signatures))\n')
+    done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                          timeout=120, cwd=REPO)
+    assert done.returncode == 0, done.stderr[-2000:]
+    transform_loaded, search_loaded = map(int, done.stdout.split())
+    assert transform_loaded >= 1 and search_loaded >= 1

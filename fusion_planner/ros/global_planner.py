@@ -99,7 +99,8 @@ from fusion_planner.core.grid import DEFAULT_MAX_CELLS
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.map_files import DEFAULT_OCCUPIED_THRESHOLD
 from fusion_planner.core.global_planning.obstacle_layer import ObstacleLayer
-from fusion_planner.core.global_planning.planner import ALGORITHMS, GlobalPlanner, PlannerConfig
+from fusion_planner.core.global_planning.planner import (
+    ALGORITHMS, GlobalPlanner, PlannerConfig, load_compiled_loops)
 from fusion_planner.ros import conversions as conv
 from fusion_planner.ros.diagnostics import OK, WARN, DiagnosticsReporter
 from fusion_planner.ros.lifecycle import AUTOSTART_DESCRIPTION, ManagedNode
@@ -369,6 +370,8 @@ class GlobalPlannerNode(ManagedNode):
     def configure(self):
         """Fresh state; the publishers, subscriptions and services."""
         params = self._params.current
+        load_s = load_compiled_loops(params.planner_config())
+        self.get_logger().debug(f'compiled loops of the planner loaded in {load_s:.3f} s')
         # Map state: the accepted message (kept to rebuild on a parameter
         # change), the options it was converted with, its planner.
         self._map_msg = None

@@ -119,7 +119,7 @@ from visualization_msgs.msg import MarkerArray
 
 from fusion_planner.core.local_planning import apf, follow
 from fusion_planner.core.errors import InvalidInput, PlanningError
-from fusion_planner.core.global_planning.planner import PlannerConfig
+from fusion_planner.core.global_planning.planner import PlannerConfig, load_compiled_loops
 from fusion_planner.core.grid import DEFAULT_MAX_CELLS
 from fusion_planner.core.local_planning.replanning import GridReplanner
 from fusion_planner.core.local_planning.scan_tracker import ScanVerdict
@@ -504,6 +504,8 @@ class LocalPlannerNode(ManagedNode):
         with self._lock:
             self._reset_state()
         params = self._params.current
+        load_s = load_compiled_loops(PlannerConfig(robot_radius=params.robot_radius))
+        self.get_logger().debug(f'compiled loops of the replanner loaded in {load_s:.3f} s')
         if params.use_tf:
             self._tf = frames.TfSource(self._tf_buffer) if self._tf_buffer is not None \
                 else frames.make_tf_source(self)
@@ -592,9 +594,13 @@ class LocalPlannerNode(ManagedNode):
         params = self._params.current
         grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
                                                max_cells=params.max_map_cells)
-        config = PlannerConfig(robot_radius=params.robot_radius)
+        replanner = GridReplanner(grid, PlannerConfig(robot_radius=params.robot_radius))
+        prepare_s = replanner.prepare()
+        self.get_logger().info(
+            f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted, '
+            f'prepared for replanning in {prepare_s:.3f} s')
         with self._lock:
-            self._replanner = GridReplanner(grid, config)
+            self._replanner = replanner
             self._scan_tracks.set_map(grid)
         if self._waiting_step is not None:  # lockstep: a step that waited for the map
             self._on_step_inputs(*self._waiting_step)

@@ -372,6 +372,21 @@ class GlobalPlanner:
         return start_cell, goal_cell
 
 
+def load_compiled_loops(config=None):
+    """Load the compiled loops a planner of ``config`` runs, now; return the time taken [s].
+
+    By preparing a planner on a 3 x 3 map: the distance transform and the
+    search loop get loaded (numba imported, the machine code read from its
+    cache or compiled). That takes a second or more, which the first map,
+    plan or control step would otherwise stall for; a node does it while it
+    configures, as Nav2's nodes do their heavy set-up. Quick without numba
+    and once loaded.
+    """
+    occupied = np.zeros((3, 3), dtype=bool)
+    occupied[0, 0] = True
+    return GlobalPlanner(GridMap(occupied, resolution=1.0), config or PlannerConfig()).prepare()
+
+
 def plan_path(occupancy, start, goal, resolution=1.0, origin=(0.0, 0.0, 0.0), config=None,
               **config_fields):
     """Plan on an occupancy array or a loaded map in one call.
