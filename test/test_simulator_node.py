@@ -7,6 +7,7 @@ otherwise; every wait is bounded.
 
 import math
 import pathlib
+import re
 import threading
 import time
 
@@ -254,6 +255,30 @@ def test_robot_stops_when_commands_stop(probe):
     assert probe.messages('truth')[-1].twist.twist.linear.x > 0.0
     time.sleep(2.0)  # > cmd_timeout (0.5 s) + braking at max_accel
     assert probe.messages('truth')[-1].twist.twist.linear.x == 0.0
+
+
+def test_a_collision_is_reported_with_what_the_robot_touched_and_where(probe):
+    backwards = Twist()
+    backwards.linear.x = -0.5  # from (1.5, 1.5) facing +x, into the wall behind
+
+    def collision_lines():
+        return [s.message for msg in probe.messages('diag') for s in msg.status
+                if s.name.endswith('/simulator') and s.message.startswith('collision ')]
+
+    deadline = time.monotonic() + WAIT_S
+    while time.monotonic() < deadline and not collision_lines():
+        probe.cmd_pub.publish(backwards)
+        time.sleep(0.025)
+    lines = collision_lines()
+    assert lines and lines[0].startswith('collision 1 (with a wall or static obstacle) at t = '), \
+        lines
+    x, y = map(float, re.search(r'robot at \(([-\d.]+), ([-\d.]+)\)', lines[0]).groups())
+    scenario = probe.sim.scenario
+    assert y == pytest.approx(1.5) and x < 1.5
+    # the robot's disc touches the wall: its centre lies within a radius (plus the rounding
+    # of the message and the cell-centre distances) of an occupied cell
+    assert scenario.grid.clearance_at([[x, y]])[0] <= scenario.robot.radius \
+        + scenario.grid.resolution
 
 
 def test_obstacle_markers_are_id_stable_cylinders_of_the_moving_obstacles(probe):

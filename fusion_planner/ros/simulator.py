@@ -637,15 +637,19 @@ class SimulatorNode(ManagedNode):
         if world.time - self._command_time > params.cmd_timeout:
             v = omega = 0.0
         before = world.pose[:2].copy()
+        counts_before = (world.moving_contact_events, world.passive_contact_events)
         contact = world.step(v, omega, self._dt)
         self._odometry_model.step(world.velocity[0], world.velocity[1], self._dt)
         if contact:
+            what = _contact_kind(world, counts_before)
             self._diagnostics.update(
-                WARN, f'collision {world.contact_events} at t = {world.time:.2f} s, robot at '
-                      f'({world.pose[0]:.2f}, {world.pose[1]:.2f})',
+                WARN, f'collision {world.contact_events} ({what}) at t = {world.time:.2f} s, '
+                      f'robot at ({world.pose[0]:.2f}, {world.pose[1]:.2f})',
                 collisions=world.contact_events)
             self.get_logger().warning(
-                f'collision (contact event {world.contact_events}) at t = {world.time:.2f} s')
+                f'collision (contact event {world.contact_events}, {what}) at '
+                f't = {world.time:.2f} s, robot at ({world.pose[0]:.2f}, {world.pose[1]:.2f}) '
+                f'heading {world.pose[2]:.2f} rad, speed {world.velocity[0]:.2f} m/s')
         self.distance_travelled += float(np.hypot(*(world.pose[:2] - before)))
         self.min_clearance = min(self.min_clearance, world.clearance())
         self._step_answered = False
@@ -807,6 +811,21 @@ class SimulatorNode(ManagedNode):
             distance_travelled_m=self.distance_travelled,
             distance_to_goal_m=float(np.hypot(*(world.pose[:2] - self._goal))),
             real_time_factor=self._rtf, x=float(world.pose[0]), y=float(world.pose[1]))
+
+
+
+def _contact_kind(world, counts_before):
+    """What the contact event that began in the last step touched, in words for the log.
+
+    ``counts_before`` is ``(moving_contact_events, passive_contact_events)`` of the
+    world before that step.
+    """
+    moving, passive = counts_before
+    if world.moving_contact_events == moving:
+        return 'with a wall or static obstacle'
+    if world.passive_contact_events > passive:
+        return 'with a moving obstacle, passive: the robot could not have escaped'
+    return 'with a moving obstacle'
 
 
 def main(args=None):
