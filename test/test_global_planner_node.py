@@ -331,6 +331,16 @@ def test_every_goal_ends_with_exactly_one_outcome(harness):
     assert harness.goal_outcomes == ['preempted', 'reached', 'cancelled']
 
 
+def test_the_active_goal_sent_again_is_planned_anew_not_preempted(harness):
+    harness.setup_world()
+    assert harness.send_goal(*GOAL)
+    assert harness.send_goal(*GOAL), 'no new plan'  # a retry, as a GoalSender makes one
+    harness.spin_for(0.5)
+    assert harness.goal_outcomes == [] and harness.plans[-1].poses
+    assert harness.send_goal(GOAL[0], GOAL[1] - 0.5)  # another pose is another goal
+    assert harness.spin_until(lambda: harness.goal_outcomes == ['preempted'])
+
+
 def test_bad_messages_do_not_kill_the_node(harness):
     harness.setup_world()
     nan_goal = pose_msg(float('nan'), 3.0)

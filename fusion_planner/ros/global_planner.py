@@ -525,13 +525,19 @@ class GlobalPlannerNode(ManagedNode):
             self._replan('map')
 
     def _on_goal(self, msg):
-        """Plan to a new goal; one still active ends ``preempted``."""
+        """Plan to a new goal; one still active ends ``preempted``.
+
+        The active goal's pose again (a sender's retry, whatever its stamp)
+        is the same goal: it is planned for anew and goes on.
+        """
         goal = conv.pose_stamped_to_xy_yaw(msg, self._frame_id, 'goal')
         if not self.active:
             self._diagnostics.log.warning('goal_pose/inactive',
                                           'goal_pose ignored: the node is inactive')
             return
-        if self._goal is not None:
+        if self._goal is not None and tuple(goal) == tuple(self._goal):
+            self.get_logger().info('the active goal received again: replanning for it')
+        elif self._goal is not None:
             self._end_goal('preempted', 'a newer goal arrived', stop=False)
         self._goal = goal
         self._check_clock()
