@@ -594,13 +594,9 @@ class LocalPlannerNode(ManagedNode):
         params = self._params.current
         grid = conv.occupancy_grid_to_grid_map(msg, self._frame_id, unknown_is_occupied=True,
                                                max_cells=params.max_map_cells)
-        replanner = GridReplanner(grid, PlannerConfig(robot_radius=params.robot_radius))
-        prepare_s = replanner.prepare()
-        self.get_logger().info(
-            f'map {msg.info.width} x {msg.info.height} cells at {msg.info.resolution:g} m accepted, '
-            f'prepared for replanning in {prepare_s:.3f} s')
+        config = PlannerConfig(robot_radius=params.robot_radius)
         with self._lock:
-            self._replanner = replanner
+            self._replanner = GridReplanner(grid, config)
             self._scan_tracks.set_map(grid)
         if self._waiting_step is not None:  # lockstep: a step that waited for the map
             self._on_step_inputs(*self._waiting_step)

@@ -112,15 +112,6 @@ class GridReplanner:
         self.config = config or PlannerConfig()
         self.robot_radius = robot_radius
 
-    def prepare(self):
-        """Do now what the first replan would otherwise pay for; return the time taken [s].
-
-        The known map's clearance (kept by the map, read by every replan) and the
-        compiled search loop (importing numba and loading it from its cache take
-        a second or more: a controller's first replan would stall that long).
-        """
-        return GlobalPlanner(self.grid, self.config).prepare()
-
     def __call__(self, start, goal, obstacle_points):
         """Plan from ``start`` to ``goal`` [m] around the map and ``obstacle_points`` (M, 2) [m].
 
