@@ -813,7 +813,6 @@ class SimulatorNode(ManagedNode):
             real_time_factor=self._rtf, x=float(world.pose[0]), y=float(world.pose[1]))
 
 
-
 def _contact_kind(world, counts_before):
     """What the contact event that began in the last step touched, in words for the log.
 
