@@ -377,8 +377,9 @@ def load_compiled_loops(config=None):
 
     By preparing a planner on a 3 x 3 map: the distance transform and the
     search loop get loaded (numba imported, the machine code read from its
-    cache or compiled). That takes a second or more, which the first map,
-    plan or control step would otherwise stall for; a node does it while it
+    cache or compiled). That takes about 0.4 s, up to 1.7 s on a busy
+    machine, which the first map, plan or control step would otherwise
+    stall for (the simulator waits 1 s for a command); a node does it while it
     configures, as Nav2's nodes do their heavy set-up. Quick without numba
     and once loaded.
     """
