@@ -13,10 +13,13 @@ time, so a slow machine slows a run down instead of failing it; every wait
 is bounded.
 
 - Odometry stops: every command later than ``odom_timeout`` (0.5 s) after
-  the last odometry is zero; the robot drives on when odometry is back.
+  the last odometry arrived is zero; the robot drives on when odometry is
+  back. Ages count from arrival on the node's clock, as the node counts them
+  (robust to a sender's clock offset); the last message can arrive a step
+  after it was sent.
 - Scans stop: every command later than ``scan_timeout`` after the last scan
-  is zero (``on_stale_scan: stop``) or no faster than ``stale_scan_speed``
-  (``slow``, set at run time).
+  arrived is zero (``on_stale_scan: stop``) or no faster than
+  ``stale_scan_speed`` (``slow``, set at run time).
 - The simulator restarts, so its clock jumps back to 0 (a reset): no node
   reports a fault, no moving command uses an input of before the jump (one
   stamped or received later than the command's time), and the robot
@@ -227,20 +230,26 @@ def assert_all_stopped_after(loop, t):
     assert not moving, f'moving at t = {moving[0][0]:.2f} s, stop due at {t:.2f} s'
 
 
+def last_arrival(loop, name):
+    """When the local planner received its last ``odom`` or ``scan`` [s, node clock]."""
+    local = loop.local
+    return local._odom_received if name == 'odom' else local._scan[1]
+
+
 def test_odometry_or_scans_stopping_stop_or_slow_the_robot_and_it_drives_on(loop):
     assert loop.wait_for(lambda: loop.moving_since(0.0)), 'the robot never started'
 
     odom_pub = loop.sim._odom_pub
     stopped = loop.mute('odom')
     assert loop.wait_sim_time(stopped + loop.timeout('odom_timeout') + FAULT_S)
-    assert_all_stopped_after(loop, stopped + loop.timeout('odom_timeout'))
+    assert_all_stopped_after(loop, last_arrival(loop, 'odom') + loop.timeout('odom_timeout'))
     back = loop.unmute('odom', odom_pub)
     assert loop.wait_for(lambda: loop.moving_since(back)), 'no motion after odometry came back'
 
     scan_pub = loop.sim._scan_pub
     stopped = loop.mute('scan')
     assert loop.wait_sim_time(stopped + loop.timeout('scan_timeout') + FAULT_S)
-    assert_all_stopped_after(loop, stopped + loop.timeout('scan_timeout'))
+    assert_all_stopped_after(loop, last_arrival(loop, 'scan') + loop.timeout('scan_timeout'))
     back = loop.unmute('scan', scan_pub)
     assert loop.wait_for(lambda: loop.moving_since(back)), 'no motion after scans came back'
 
@@ -249,7 +258,7 @@ def test_odometry_or_scans_stopping_stop_or_slow_the_robot_and_it_drives_on(loop
         Parameter('on_stale_scan', value='slow'), Parameter('stale_scan_speed', value=slow)]))
     stopped = loop.mute('scan')
     assert loop.wait_sim_time(stopped + loop.timeout('scan_timeout') + FAULT_S)
-    after = loop.commands_after(stopped + loop.timeout('scan_timeout'))
+    after = loop.commands_after(last_arrival(loop, 'scan') + loop.timeout('scan_timeout'))
     assert after and max(c[1] for c in after) <= slow + 1e-9
     assert any(c[1] > 0.0 for c in after), 'slow, not stopped'
     loop.unmute('scan', scan_pub)
