@@ -20,6 +20,7 @@ from fusion_planner.core.local_planning.follow import make_controller
 from fusion_planner.core.local_planning.speed_policy import (
     ROTATE_FIRST_RAD, braking_path_gap, turn_cap, turn_speed)
 from fusion_planner.core.local_planning.yielding import passing_bounds, route_closures
+from fusion_planner.core.simulation.world import integrate_unicycle
 
 PARAMS = FollowerParams(max_speed=1.0, max_accel=1.0, max_omega=2.0, robot_radius=0.2)
 NO_CIRCLES = np.zeros((0, 3))
@@ -146,6 +147,54 @@ def test_a_robot_turning_round_beside_a_wall_turns_away_from_it():
     assert turn_round_error(pose, 0.6, -1.0, wall_right, PARAMS) == -1.0     # not turning round
     farther = wall((-1.0, -0.5), (4.0, -0.5))                  # the short way's arc is free
     assert turn_round_error(pose, 0.6, toward_wall, farther, PARAMS) == toward_wall
+
+
+def clearance_braking_for_a_box_seen_late(odometry_scale, tell_commands, dt=0.05):
+    """Least clearance [m] of a robot at 0.8 m/s that sees a box across its route 0.5 m ahead.
+
+    The robot sheds at most ``max_accel * dt`` of speed a period, as a base does; its
+    odometry reports ``odometry_scale`` times its speed; with ``tell_commands`` the
+    controller is told its last command (the local planner node tells it).
+    """
+    p = FollowerParams(max_speed=0.8, max_accel=1.0, max_omega=2.0, robot_radius=0.2,
+                       control_period=dt)
+    controller = make_controller('fusion', p)
+    controller.set_path(np.array([[0.0, 0.0], [10.0, 0.0]]), np.array([[10.0, 0.0]]))
+    box = wall((4.0, -1.0), (4.0, 1.0))
+    pose, v, omega, last = np.zeros(3), 0.8, 0.0, None
+    least = math.inf
+    for k in range(100):
+        seen = box if 4.0 - pose[0] - p.robot_radius < 0.5 else np.zeros((0, 2))
+        command = controller.compute(Observation(
+            pose.copy(), np.array([odometry_scale * v, omega]), seen, np.zeros((0, 5)), k * dt,
+            commanded=last if tell_commands else None))
+        last = (command.v, command.omega)
+        dv = p.max_accel * dt
+        v, omega = min(max(command.v, v - dv), v + dv), command.omega
+        pose = integrate_unicycle(pose, v, omega, dt)
+        least = min(least, float(np.min(np.hypot(*(box - pose[:2]).T))) - p.robot_radius)
+    return least
+
+
+@pytest.mark.parametrize('odometry_scale', [0.9, 1.0, 1.05, 1.1])
+def test_odometry_that_overstates_the_speed_does_not_hold_the_brakes_back(odometry_scale):
+    """Braking from the measured speed brakes at a fifth of the robot's power at 5 % too fast.
+
+    0.05 m/s may be shed a period; odometry 5 % fast reads 0.84 m/s at 0.8 m/s, and a
+    command 0.05 below that sheds 0.01 m/s. Braking from the last command stops clear.
+    """
+    assert clearance_braking_for_a_box_seen_late(odometry_scale, tell_commands=True) > 0.05
+    untold = clearance_braking_for_a_box_seen_late(odometry_scale, tell_commands=False)
+    assert (untold > 0.05) == (odometry_scale <= 1.0)
+
+
+def test_an_observation_refuses_a_bad_last_command():
+    with pytest.raises(InvalidInput, match='commanded'):
+        Observation(np.zeros(3), np.zeros(2), np.zeros((0, 2)), np.zeros((0, 5)), 0.0,
+                    commanded=(math.nan, 0.0))
+    with pytest.raises(InvalidInput, match='commanded'):
+        Observation(np.zeros(3), np.zeros(2), np.zeros((0, 2)), np.zeros((0, 5)), 0.0,
+                    commanded=(0.5,))
 
 
 # -- progress --------------------------------------------------------------------------------

@@ -495,6 +495,7 @@ class LocalPlannerNode(ManagedNode):
         self._step_ms_max = 0.0
         self._timing = [0.0, 0, None]  # [sum of step times [ms], steps, window start [s]]
         self._idle_stop_sent = False  # the one zero command of an idle spell went out
+        self._last_command = None  # (v, omega) last published [m/s, rad/s]
         self._plans = {}  # lockstep: the latest plans by stamp [ns]
         self._waiting_step = None  # lockstep: (stamp [ns], messages) of a step awaiting its plan
         self._plan_in_force = None  # lockstep: stamp of the plan last handed over [ns]
@@ -817,7 +818,8 @@ class LocalPlannerNode(ManagedNode):
             obs = follow.Observation(
                 pose=pose, velocity=velocity, obstacle_points=points,
                 tracked=self._in_plan_frame(tracked), time=now,
-                tentative=self._in_plan_frame(tentative), turn_stds=turn_stds)
+                tentative=self._in_plan_frame(tentative), turn_stds=turn_stds,
+                commanded=self._last_command)
             self._controller.display_plan = self._local_plan_pub.get_subscription_count() > 0
             command = self._controller.compute(obs)
             # The robot's limits hold whatever the controller asks: it brakes from the
@@ -913,6 +915,7 @@ class LocalPlannerNode(ManagedNode):
         if idle and self._idle_stop_sent and not self._params.current.publish_zero_when_idle:
             return
         self._idle_stop_sent = idle
+        self._last_command = (v, omega)
         if self._stamped:
             stamp = self._odom_stamp if self._odom is not None else self._stamp()
             msg = conv.velocity_to_twist_stamped(v, omega, self._robot_frame_id, stamp)
