@@ -822,7 +822,7 @@ class LocalPlannerNode(ManagedNode):
                 commanded=self._last_command)
             self._controller.display_plan = self._local_plan_pub.get_subscription_count() > 0
             command = self._controller.compute(obs)
-            # The robot's limits hold whatever the controller asks: it brakes from the
+            # The robot's limits hold whatever the controller asks: it speeds up from the
             # measured velocity, which an odometry glitch can put beyond them.
             v = min(max(command.v, -params.max_speed), params.max_speed)
             omega = min(max(command.omega, -params.max_omega), params.max_omega)
