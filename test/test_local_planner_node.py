@@ -69,6 +69,7 @@ class FakeRobot:
         self.odom_on = True
         self.scan_on = True
         self.last_odom_wall = None
+        self.longest_odom_gap = 0.0  # longest wall time between two odometry messages sent [s]
         self.odom_stamps = set()  # stamps of the odometry sent [ns]
         self.scan_frame = 'base_link'
         self.scan_ranges = [math.inf] * 180
@@ -108,7 +109,10 @@ class FakeRobot:
             odom.pose.pose.orientation.w = 1.0
             self.odom_pub.publish(odom)
             self.odom_stamps.add(conv.stamp_to_nanoseconds(stamp))
-            self.last_odom_wall = time.monotonic()
+            sent = time.monotonic()
+            if self.last_odom_wall is not None:
+                self.longest_odom_gap = max(self.longest_odom_gap, sent - self.last_odom_wall)
+            self.last_odom_wall = sent
         if self.scan_on:
             scan = LaserScan()
             scan.header.frame_id = self.scan_frame
@@ -366,6 +370,7 @@ def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_the_robot_keeps
     assert robot.wait_until(lambda: obstacles_pub.get_subscription_count() > 0, 5.0)
     capfd.readouterr()  # only what the bad messages cause counts
     started = time.monotonic()
+    robot.longest_odom_gap = 0.0
     inputs = [(robot.plan_pub, fuzz.paths(bad_only=True)),
               (robot.odom_pub, fuzz.odometries(bad_only=True)),
               (robot.scan_pub, fuzz.laser_scans(bad_only=True)),
@@ -379,7 +384,14 @@ def test_hundreds_of_fuzzed_bad_messages_are_refused_quietly_and_the_robot_keeps
     assert values['faults'] == 0, values['last_error']
     err = capfd.readouterr().err
     lines = fuzz.problem_lines(err, robot.planner)
-    assert 4 <= len(lines) <= fuzz.allowed_problem_lines(4, elapsed), lines
+    # Besides the four refusals the node may rightly warn of one thing: old odometry,
+    # when a loaded machine froze this test process and the fake robot's odometry lapsed.
+    stale_odometry = [line for line in lines if ': stopping: odometry is ' in line]
+    odometry_lapsed = robot.longest_odom_gap > 0.5 * lp.LocalPlannerParams().odom_timeout
+    assert odometry_lapsed or not stale_odometry, stale_odometry
+    refusals = len(lines) - len(stale_odometry)
+    assert 4 <= refusals <= fuzz.allowed_problem_lines(4, elapsed), lines
+    assert len(stale_odometry) <= fuzz.allowed_problem_lines(1, elapsed), lines
     assert 'Traceback' not in err
     t0 = time.monotonic()
     assert robot.wait_until(lambda: moving(robot.commands_since(t0)), 3.0), \
