@@ -26,6 +26,25 @@ def test_json_holds_every_family_asked_for(capsys):
     assert summary['unsolvable_episodes'] == 1 and summary['wall_time_s'] > 0
 
 
+def test_the_stress_tests_run_only_when_asked_for(monkeypatch, capsys):
+    from fusion_planner.bench import families as bench_families
+    from fusion_planner.core.simulation.families import FAMILIES
+    one = bench_families.run_batch(1, 3, controllers=['astar-track'], family='unreachable')
+    asked = []
+
+    def record(n, seed, family, **_options):
+        asked.append(family)
+        return one
+
+    monkeypatch.setattr(bench_families, 'run_batch', record)
+    assert main(['bench', 'families', '--scenarios', '1', '--controller', 'astar-track']) == 0
+    assert asked == [f for f in FAMILIES if f != 'dense-crowd']
+    asked.clear()
+    assert main(['bench', 'families', '--scenarios', '1', '--family', 'dense-crowd']) == 0
+    assert asked == ['dense-crowd']
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize('argv, words', [
     (['--scenarios', '0'], '--scenarios'),
     (['--family', 'maze'], 'unknown family'),

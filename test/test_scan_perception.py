@@ -28,6 +28,17 @@ def test_families_are_valid_reproducible_and_differ_by_seed(family):
     assert a.family == family and a.solvable is True
 
 
+def test_a_dense_crowd_is_the_crowd_of_its_seed_with_14_to_18_people():
+    counts = set()
+    for seed in range(30):
+        crowd, dense = DYNAMIC_FAMILIES['crowd'](seed), DYNAMIC_FAMILIES['dense-crowd'](seed)
+        assert (dense.start, dense.goal) == (crowd.start, crowd.goal)
+        assert np.array_equal(dense.grid.occupied, crowd.grid.occupied)
+        counts.add(len(dense.moving_obstacles))
+        assert len(dense.moving_obstacles) > len(crowd.moving_obstacles)
+    assert counts <= set(range(14, 19)) and len(counts) > 1
+
+
 def test_fast_obstacles_are_as_fast_as_the_robot():
     for seed in range(5):
         scenario = DYNAMIC_FAMILIES['fast-obstacle'](seed)

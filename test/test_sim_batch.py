@@ -52,8 +52,9 @@ def test_fusion_batch_has_no_collisions(fusion_batch):
 def test_fusion_batch_told_the_true_moving_obstacles_has_no_avoidable_contact():
     """With ideal perception a person may still walk into a robot that cannot get away.
 
-    ``random-2651666590`` has two such (passive) contacts: the robot, cornered
-    between an unknown post and a wall, is caught up by a person behind it.
+    ``random-2651666590`` is the batch's close call: the robot, boxed between an
+    unknown post and a wall, is caught up by a person behind it (two passive
+    contacts with earlier codes, none now).
     """
     batch = run_batch(BATCH_SIZE, BATCH_SEED, controllers=['fusion'], workers=1,
                       perceptions=('ideal',))

@@ -32,14 +32,16 @@ from fusion_planner.bench.peers import machine_summary
 from fusion_planner.cli.progress import Progress
 from fusion_planner.cli.sim_command import quiet_core
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES
+from fusion_planner.core.simulation.dynamic_families import DYNAMIC_FAMILIES, STRESS_FAMILIES
 from fusion_planner.core.simulation.episodes import batch_seeds, run_episode
 from fusion_planner.core.simulation.families import family_scenario
 from fusion_planner.core.simulation.perception import PERCEPTION_MODES
 
 EXIT_OK = 0
-#: The scenario families whose difficulty includes moving obstacles.
-MOVING_FAMILIES = ('mixed', 'corridors') + tuple(DYNAMIC_FAMILIES)
+#: The scenario families whose difficulty includes moving obstacles (the stress
+#: tests aside, which run only when asked for).
+MOVING_FAMILIES = ('mixed', 'corridors') + tuple(f for f in DYNAMIC_FAMILIES
+                                                 if f not in STRESS_FAMILIES)
 #: Default scenarios per family and batch seed; quick mode's scenarios.
 DEFAULT_SCENARIOS = 50
 DEFAULT_SEED = 101
@@ -131,8 +133,8 @@ def add_arguments(parser):
     add_batch_arguments(parser, DEFAULT_SCENARIOS, DEFAULT_SEED,
                         f'{QUICK_SCENARIOS} scenario per family')
     parser.add_argument('--family', action='append', metavar='NAME',
-                        help=f'one of {", ".join(MOVING_FAMILIES)}; repeat for several '
-                             '(default all)')
+                        help=f'one of {", ".join(MOVING_FAMILIES + STRESS_FAMILIES)}; repeat '
+                             'for several (default all but the stress tests)')
     parser.add_argument('--jobs', type=int, default=1, metavar='J',
                         help='worker processes (default 1; results do not depend on it)')
 
@@ -147,9 +149,10 @@ def run(args):
     """
     n = QUICK_SCENARIOS if args.quick else args.scenarios
     families = args.family or list(MOVING_FAMILIES)
-    unknown = [f for f in families if f not in MOVING_FAMILIES]
+    known = MOVING_FAMILIES + STRESS_FAMILIES
+    unknown = [f for f in families if f not in known]
     if unknown or n < 1 or args.jobs < 1:
-        raise InvalidInput(f'need known families ({", ".join(MOVING_FAMILIES)}), positive '
+        raise InvalidInput(f'need known families ({", ".join(known)}), positive '
                            f'--scenarios and --jobs; got {families}, {n}, {args.jobs}')
     reporter = Progress(n * len(families), 'bench dynamic', unit='scenarios')
     with quiet_core(args):

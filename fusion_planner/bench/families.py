@@ -24,6 +24,7 @@ from fusion_planner.cli.progress import Progress
 from fusion_planner.cli.sim_command import batch_table, quiet_core
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.simulation.episodes import CONTROLLERS, run_batch
+from fusion_planner.core.simulation.dynamic_families import STRESS_FAMILIES
 from fusion_planner.core.simulation.families import FAMILIES
 
 EXIT_OK = 0
@@ -39,7 +40,8 @@ def add_arguments(parser):
     parser.add_argument('--seed', type=int, default=DEFAULT_SEED, metavar='S',
                         help='batch seed (default %(default)s)')
     parser.add_argument('--family', action='append', metavar='F',
-                        help=f'one of {", ".join(FAMILIES)}; repeat for several (default all)')
+                        help=f'one of {", ".join(FAMILIES)}; repeat for several (default all but '
+                             f'the stress tests {", ".join(STRESS_FAMILIES)})')
     parser.add_argument('--controller', action='append', metavar='NAME',
                         help=f'one of {", ".join(CONTROLLERS)}; repeat for several (default all)')
     parser.add_argument('--jobs', type=int, default=1, metavar='J',
@@ -59,7 +61,8 @@ def run(args):
                                ('--seed', args.seed, 0)):
         if value < low:
             raise InvalidInput(f'{option} must be at least {low}, got {value}')
-    families = _chosen(args.family, FAMILIES, 'family')
+    families = _chosen(args.family or [f for f in FAMILIES if f not in STRESS_FAMILIES],
+                       FAMILIES, 'family')
     controllers = _chosen(args.controller, CONTROLLERS, 'controller')
     progress = Progress(args.scenarios * len(families), 'bench families', unit='scenarios')
     batches = []

@@ -14,6 +14,11 @@ range noise, a 0.1 s control period and a 90 s time limit:
 ``crowd``
     A 14 x 10 m hall with five to ten people wandering (random walks,
     0.3-0.7 m/s) across the robot's way.
+``dense-crowd``
+    The hall, start and goal of ``crowd`` with 14 to 18 people: a stress
+    test, not one of the families a robot is held to; about ten times as
+    many of the robot's contacts as in ``crowd``, so that a change to the
+    evasion can be compared on hundreds of runs rather than thousands.
 ``blind-corner``
     A 2 m wide corridor with a side corridor; a person (0.6-1.0 m/s) steps
     out of the side corridor across the main one when the robot is near its
@@ -55,6 +60,8 @@ RESOLUTION = 0.1
 ROBOT_CRUISE = 0.6
 #: Radii [m] of people.
 PERSON_RADIUS = (0.2, 0.3)
+#: People of a ``dense-crowd`` scenario: from, and up to but not including.
+DENSE_CROWD_PEOPLE = (14, 19)
 #: Attempts before a family gives up on a seed.
 MAX_ATTEMPTS = 50
 
@@ -121,19 +128,44 @@ def _draw_crossing(rng):
 
 def _draw_crowd(rng):
     """One draw of five to ten wandering people: ``(grid, start, goal, moving)``."""
-    grid = hall(14.0, 10.0)
-    start, goal = (1.2, float(rng.uniform(2.0, 8.0)), 0.0), (12.8, float(rng.uniform(2.0, 8.0)))
+    grid, start, goal = _crowd_hall(rng)
     moving = []
-    while len(moving) < int(rng.integers(5, 11)):
-        p = rng.uniform([3.0, 1.0], [11.0, 9.0])
-        radius = float(rng.uniform(*PERSON_RADIUS))
-        if min(np.hypot(*(p - start[:2])), np.hypot(*(p - goal))) < 2.0 or any(
-                np.hypot(*(p - m.motion.position)) < radius + m.radius + 0.3 for m in moving):
-            continue
-        moving.append(MovingObstacle(radius, RandomWalkMotion(
-            (float(p[0]), float(p[1])), float(rng.uniform(0.3, 0.7)),
-            float(rng.uniform(0.3, 0.8)))))
+    while len(moving) < int(rng.integers(5, 11)):  # drawn anew each time: the family's seeds
+        _add_wanderer(rng, start, goal, moving)
     return grid, start, goal, moving
+
+
+def _draw_dense_crowd(rng):
+    """One draw of 14 to 18 wandering people: ``(grid, start, goal, moving)``.
+
+    The hall, start and goal of the ``crowd`` scenario of the same seed.
+    """
+    grid, start, goal = _crowd_hall(rng)
+    moving = []
+    count = int(rng.integers(*DENSE_CROWD_PEOPLE))
+    while len(moving) < count:
+        _add_wanderer(rng, start, goal, moving)
+    return grid, start, goal, moving
+
+
+def _crowd_hall(rng):
+    """The 14 x 10 m hall of the crowds and a start and goal across it: ``(grid, start, goal)``."""
+    grid = hall(14.0, 10.0)
+    return grid, (1.2, float(rng.uniform(2.0, 8.0)), 0.0), (12.8, float(rng.uniform(2.0, 8.0)))
+
+
+def _add_wanderer(rng, start, goal, moving):
+    """Draw a person on a random walk into ``moving``, unless drawn too close to another.
+
+    None within 2 m of ``start`` or ``goal`` [m], none within 0.3 m of another.
+    """
+    p = rng.uniform([3.0, 1.0], [11.0, 9.0])
+    radius = float(rng.uniform(*PERSON_RADIUS))
+    if min(np.hypot(*(p - start[:2])), np.hypot(*(p - goal))) < 2.0 or any(
+            np.hypot(*(p - m.motion.position)) < radius + m.radius + 0.3 for m in moving):
+        return
+    moving.append(MovingObstacle(radius, RandomWalkMotion(
+        (float(p[0]), float(p[1])), float(rng.uniform(0.3, 0.7)), float(rng.uniform(0.3, 0.8)))))
 
 
 def _draw_blind_corner(rng):
@@ -216,10 +248,14 @@ def generate(family, seed):
 _DRAWS = {
     'crossing': (1, _draw_crossing),
     'crowd': (2, _draw_crowd),
+    'dense-crowd': (2, _draw_dense_crowd),   # the salt of crowd: the same start and goal
     'blind-corner': (3, _draw_blind_corner),
     'fast-obstacle': (4, _draw_fast_obstacle),
 }
 
 #: Family name -> generator ``seed -> Scenario``.
 DYNAMIC_FAMILIES = {name: functools.partial(generate, name) for name in _DRAWS}
+
+#: Stress tests: families a benchmark runs only when asked for by name.
+STRESS_FAMILIES = ('dense-crowd',)
 

@@ -21,7 +21,7 @@ seed, same scenario); docs/SCENARIOS.md describes every family.
     Two rooms joined by one or two openings on the known map, each closed by
     a box missing from the map: the goal is reachable on the known map and
     not in the world.
-``'crossing'``, ``'crowd'``, ``'blind-corner'``, ``'fast-obstacle'``
+``'crossing'``, ``'crowd'``, ``'dense-crowd'``, ``'blind-corner'``, ``'fast-obstacle'``
     Moving obstacles are the difficulty
     (:mod:`~fusion_planner.core.simulation.dynamic_families`).
 
