@@ -130,7 +130,8 @@ def _draw_crowd(rng):
     """One draw of five to ten wandering people: ``(grid, start, goal, moving)``."""
     grid, start, goal = _crowd_hall(rng)
     moving = []
-    while len(moving) < int(rng.integers(5, 11)):  # drawn anew each time: the family's seeds
+    # the count is drawn anew on every pass: kept, so each seed keeps its scenario
+    while len(moving) < int(rng.integers(5, 11)):
         _add_wanderer(rng, start, goal, moving)
     return grid, start, goal, moving
 
