@@ -23,8 +23,8 @@ import json
 from fusion_planner.cli.progress import Progress
 from fusion_planner.cli.sim_command import batch_table, quiet_core
 from fusion_planner.core.errors import InvalidInput
-from fusion_planner.core.simulation.episodes import CONTROLLERS, run_batch
 from fusion_planner.core.simulation.dynamic_families import STRESS_FAMILIES
+from fusion_planner.core.simulation.episodes import CONTROLLERS, run_batch
 from fusion_planner.core.simulation.families import FAMILIES
 
 EXIT_OK = 0
