@@ -420,6 +420,15 @@ def test_two_namespaced_robots_do_not_cross_talk(context, tmp_path):
         for ns, path in robots.items():
             runs[ns] = Run(context, path, ros_args=demo.namespace_ros_args(ns), in_process=False,
                            log_dir=tmp_path / ns.strip('/') / 'logs')
+        # Both robots drive at once: waiting for either sends each its goal once
+        # heard, so no world is held (its clock still) while the other drives.
+        ticks = [run.tick for run in runs.values()]
+
+        def tick_all():
+            for tick in ticks:
+                tick()
+        for run in runs.values():
+            run.tick = tick_all
         for ns, run in runs.items():
             failure = run.wait_arrival()
             assert failure is None, f'{ns}: {failure}'
