@@ -214,6 +214,17 @@ def test_time_without_progress_counts_from_the_last_progress_and_survives_a_new_
     assert monitor.update(14.0, 17.8) == 0.0
 
 
+def test_time_a_robot_is_pushed_away_from_the_goal_is_not_time_without_progress():
+    monitor = ProgressMonitor(min_progress=0.15)
+    monitor.update(0.0, 5.0)
+    assert monitor.update(2.0, 5.0) == 2.0
+    assert monitor.update(3.0, 6.0, pushed=True) == 2.0    # chased 1 m back
+    assert monitor.update(4.0, 6.0, pushed=True) == 3.0    # held where it was: counts
+    assert monitor.update(5.0, 5.5, pushed=True) == 4.0    # driven back: counts
+    assert monitor.update(6.0, 6.5) == 5.0                 # went back on its own: counts
+    assert monitor.update(7.0, 4.8) == 0.0
+
+
 # -- passing people --------------------------------------------------------------------------
 
 def test_a_person_walking_along_the_route_is_passed_on_the_roomier_side_and_kept_there():

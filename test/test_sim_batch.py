@@ -75,3 +75,15 @@ def test_fusion_does_not_turn_into_a_walker_not_yet_confirmed_as_moving(family, 
     result = run_episode(generate(family, seed), 'fusion', record=False, perception='scan')
     assert result.collisions == 0, result.summary()
     assert result.reached, result.failure
+
+
+def test_a_robot_chased_off_by_a_person_has_the_chase_s_time_to_come_back():
+    """``crowd-156382204``: 0.66 m from the goal at 18 s, a person chases the robot 6 m off.
+
+    It drove back and was 0.93 m from the goal, closing in, when 30 s without
+    progress ended the run; the chase no longer counts as time without progress.
+    """
+    result = run_episode(generate('crowd', 156382204), 'fusion', record=False,
+                         perception='ideal')
+    assert result.reached, result.failure
+    assert result.collisions == 0, result.summary()

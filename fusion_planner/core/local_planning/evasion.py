@@ -605,16 +605,18 @@ class Evader:
     backing : bool
         The last call backed away: waiting or going on needs
         :data:`BACKING_YIELD_MARGIN` again, not :data:`YIELD_MARGIN`.
+    evading : bool
+        The last call replaced the command.
     """
 
     def __init__(self):
-        self.kept = None
-        self.backing = False
+        self.forget()
 
     def forget(self):
         """Drop the kept choice and the backing (the evasion did not run this period)."""
         self.kept = None
         self.backing = False
+        self.evading = False
 
     def evade(self, pose, velocity, command, desired, tracked, points, params, turn_stds=None,
               reach=math.inf):
@@ -624,6 +626,7 @@ class Evader:
         forward = chosen is not None and (chosen[0] == 'pivot' or chosen[1] >= 0.0)
         self.kept = chosen if evading and forward else None
         self.backing = evading and not forward
+        self.evading = evading
         return v, omega, evading
 
 

@@ -684,7 +684,8 @@ class FieldFollower(ControllerBase):
             self._route.project(q)
         self._update_sub_goal(q, scene)
         target = self._key_nodes[self._index]
-        stalled = self._monitor.update(obs.time, self._remaining(q))  # [s] without progress
+        stalled = self._monitor.update(obs.time, self._remaining(q),  # [s] without progress
+                                       pushed=self._evader.evading)
         if stalled > p.escape_time_limit:
             reason = (f'stuck: no progress toward the goal for {p.escape_time_limit:g} s, near '
                       f'({q[0]:.2f}, {q[1]:.2f}), {goal_distance:.2f} m from the goal')
