@@ -220,9 +220,11 @@ def test_time_a_robot_is_pushed_away_from_the_goal_is_not_time_without_progress(
     assert monitor.update(2.0, 5.0) == 2.0
     assert monitor.update(3.0, 6.0, pushed=True) == 2.0    # chased 1 m back
     assert monitor.update(4.0, 6.0, pushed=True) == 3.0    # held where it was: counts
-    assert monitor.update(5.0, 5.5, pushed=True) == 4.0    # driven back: counts
-    assert monitor.update(6.0, 6.5) == 5.0                 # went back on its own: counts
-    assert monitor.update(7.0, 4.8) == 0.0
+    assert monitor.update(5.0, 5.5, pushed=True) == 4.0    # evading towards the goal: counts
+    assert monitor.update(6.0, 6.5) == 5.0                 # driving away on its own: counts
+    monitor.rebase(8.0)                                    # a longer new plan: no push
+    assert monitor.update(7.0, 8.0, pushed=True) == 6.0
+    assert monitor.update(8.0, 7.8) == 0.0
 
 
 # -- passing people --------------------------------------------------------------------------

@@ -93,7 +93,9 @@ class FollowerParams:
         status ``'failed'`` (see
         :mod:`~fusion_planner.core.local_planning.progress`; a field
         controller without escape fails at its first local minimum; the
-        first plan round people for a goal restarts this time).
+        first plan round people for a goal restarts this time, and time in
+        which the evasion drove the robot farther from the goal does not
+        count).
     robot_radius : float
         Robot radius [m], >= 0.
     prediction_horizon : float

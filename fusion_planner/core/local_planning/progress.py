@@ -70,3 +70,5 @@ class ProgressMonitor:
     def rebase(self, remaining):
         """A new plan: measure from ``remaining`` [m] on, keeping the time of the last progress."""
         self._best = remaining
+        if self._last is not None:
+            self._last = (self._last[0], remaining)
