@@ -7,6 +7,9 @@ from rclpy.executors import ExternalShutdownException
 
 from fusion_planner.core.errors import InvalidInput
 
+#: How often [s] the spin's wait times out to look for a Ctrl-C (see :func:`spin_until_stopped`).
+CTRL_C_POLL_S = 0.25
+
 
 def run_node(node_class, node_name, args=None):
     """Spin one node until Ctrl-C or shutdown.
@@ -32,7 +35,7 @@ def run_node(node_class, node_name, args=None):
     node = None
     try:
         node = node_class()
-        rclpy.spin(node)
+        spin_until_stopped(node, ctrl_c)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except InvalidInput as err:
@@ -52,17 +55,34 @@ def run_node(node_class, node_name, args=None):
     return 0
 
 
+def spin_until_stopped(node, ctrl_c):
+    """Spin ``node`` in the global executor until ROS shuts down or ``ctrl_c`` saw SIGINT.
+
+    rclpy's SIGINT handler shuts the context down and wakes the executor's
+    wait. Once in CI a node slept on in that wait after SIGINT until it was
+    killed, so the wait also times out every :data:`CTRL_C_POLL_S`: Python
+    then runs the handler chained to rclpy's (``ctrl_c``), and the loop ends.
+    """
+    executor = rclpy.get_global_executor()
+    executor.add_node(node)
+    try:
+        while rclpy.ok() and not ctrl_c.seen:
+            executor.spin_once(timeout_sec=CTRL_C_POLL_S)
+    finally:
+        executor.remove_node(node)
+
+
 class _CtrlCWatch:
     """Remembers that SIGINT arrived; raises KeyboardInterrupt only before ROS is up.
 
     Installed before ``rclpy.init`` so that rclpy's own handler (which shuts
     the context down and wakes the executor) chains to it instead of being
     replaced by it. Once ROS is up (``ros_up``), that shutdown is what ends
-    the spin (``ExternalShutdownException``). A KeyboardInterrupt raised as
-    well lands wherever Python happens to be: inside a ctypes callback of
-    numba's compiler during a node's first step it is printed as a
-    traceback and ignored, inside pybind11's argument conversion it becomes
-    a RuntimeError.
+    the spin (``ExternalShutdownException``), or ``seen`` at the spin's next
+    poll. A KeyboardInterrupt raised as well lands wherever Python happens
+    to be: inside a ctypes callback of numba's compiler during a node's
+    first step it is printed as a traceback and ignored, inside pybind11's
+    argument conversion it becomes a RuntimeError.
     """
 
     def __init__(self):
