@@ -100,22 +100,25 @@ def _corridor(width_m, closed_behind):
     return GridMap(occupied, resolution=0.1)
 
 
-@pytest.mark.parametrize('grid, robot_v, person, passive', [
+OPEN = GridMap(np.zeros((40, 80), bool), resolution=0.1)
+
+
+@pytest.mark.parametrize('grid, robot_v, person, approach, escape, passive', [
     # standing at the end of a dead-end corridor too narrow to pass: nowhere to go
-    (_corridor(0.6, True), 0.0, ((4.0, 2.0), (-0.6, 0.0)), True),
+    (_corridor(0.6, True), 0.0, ((4.0, 2.0), (-0.6, 0.0)), None, False, True),
     # backing away down a corridor from a person faster than the robot can drive
-    (_corridor(0.6, False), -0.3, ((3.0, 2.0), (-1.5, 0.0)), True),
+    (_corridor(0.6, False), -0.3, ((3.0, 2.0), (-1.5, 0.0)), -1.0, False, True),
     # standing in the open while a person walks at it from 2.5 m: it could step aside
-    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.0, ((5.0, 2.0), (-0.6, 0.0)), False),
+    (OPEN, 0.0, ((5.0, 2.0), (-0.6, 0.0)), None, True, False),
     # creeping on ahead of a slow person overtaking from behind, room to either side
-    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.1, ((0.6, 2.0), (0.5, 0.0)), False),
+    (OPEN, 0.1, ((0.6, 2.0), (0.5, 0.0)), -1.0, True, False),
     # driving into a person standing in the way
-    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.5, ((3.0, 2.0), (0.0, 0.0)), False),
+    (OPEN, 0.5, ((3.0, 2.0), (0.0, 0.0)), 1.0, True, False),
     # driving on at a person walking at it
-    (GridMap(np.zeros((40, 80), bool), resolution=0.1), 0.3, ((3.0, 2.0), (-0.6, 0.0)), False),
+    (OPEN, 0.3, ((3.0, 2.0), (-0.6, 0.0)), 1.0, True, False),
 ])
 def test_contacts_with_people_are_passive_only_when_the_robot_could_not_get_away(
-        grid, robot_v, person, passive):
+        grid, robot_v, person, approach, escape, passive):
     walker = MovingObstacle(0.25, BounceMotion(*person))
     world = World(grid, RobotSpec(radius=0.2, max_accel=10.0), np.array([2.0, 2.0, 0.0]),
                   moving_obstacles=[walker])
@@ -123,6 +126,10 @@ def test_contacts_with_people_are_passive_only_when_the_robot_could_not_get_away
         world.step(robot_v, 0.0, 0.05)
     assert world.contact_events == world.moving_contact_events == 1
     assert world.passive_contact_events == int(passive)
+    (event,) = world.contacts                       # the record says why
+    assert event.person == 0 and event.escape == escape and event.passive == passive
+    assert event.robot_speed_mps == pytest.approx(abs(robot_v))
+    assert event.approach == (None if approach is None else pytest.approx(approach))
 
 
 def test_tracking_stats_pair_tracks_with_the_truth_and_time_the_delay():

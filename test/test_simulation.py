@@ -149,8 +149,12 @@ def test_a_path_tracker_hits_what_the_map_did_not_show_and_fusion_does_not():
     s = _corridor([{'circle': {'center': [5.0, 2.0], 'radius': 0.4}}])
     tracked = run_episode(s, 'astar-track', record=False)
     assert tracked.collisions >= 1 and not tracked.reached
+    contacts = tracked.summary()['contacts']          # each one, where and against what
+    assert len(contacts) == tracked.collisions
+    assert all(c['person'] is None and c['escape'] is None and 4.0 < c['x_m'] < 5.0
+               for c in contacts)
     fused = run_episode(s, 'fusion', record=False)
-    assert fused.reached and fused.collisions == 0
+    assert fused.reached and fused.collisions == 0 and fused.summary()['contacts'] == []
 
 
 def test_time_and_collision_limits_end_an_episode():

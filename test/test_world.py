@@ -451,7 +451,14 @@ def test_contacts_are_attributed_to_movers_or_static_obstacles():
     for _ in range(40):
         world.step(0.0, 0.0, 0.1)           # the mover walks into the robot
     assert world.contact_events == 1 and world.moving_contact_events == 1
+    (event,) = world.contacts
+    assert event.person == 0 and event.robot_speed_mps == 0.0 and event.approach is None
+    assert event.escape and not event.passive      # standing in the open: it could step aside
+    assert event.position == tuple(world.pose[:2]) and 0.0 < event.time_s <= world.time
     world = make_world(grid_with_wall_at_x(5.0), pose=(4.5, 4.0, 0.0))
     for _ in range(30):
         world.step(0.5, 0.0, 0.1)           # the robot drives into the wall
     assert world.contact_events == 1 and world.moving_contact_events == 0
+    (event,) = world.contacts
+    assert event.person is None and event.escape is None and not event.passive
+    assert event.robot_speed_mps == pytest.approx(0.5)

@@ -33,8 +33,9 @@ Contract:
   ``moving_collisions`` (the contacts a moving obstacle began),
   ``passive_collisions`` (those of them begun while the robot stood or
   retreated and could not have got out of the way),
-  ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s`` and
-  ``time_ratio``. A batch: ``scenarios``, ``family``, ``seed``,
+  ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s``,
+  ``time_ratio`` and ``contacts`` (each contact event: where, how fast the
+  robot moved, whom it touched and how it was judged). A batch: ``scenarios``, ``family``, ``seed``,
   ``wall_time_s``, ``controllers`` (per controller the fields of
   :class:`~fusion_planner.core.simulation.episodes.ControllerSummary`) under
   the first perception, ``by_perception`` (the same per perception, when

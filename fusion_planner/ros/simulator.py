@@ -637,11 +637,10 @@ class SimulatorNode(ManagedNode):
         if world.time - self._command_time > params.cmd_timeout:
             v = omega = 0.0
         before = world.pose[:2].copy()
-        counts_before = (world.moving_contact_events, world.passive_contact_events)
         contact = world.step(v, omega, self._dt)
         self._odometry_model.step(world.velocity[0], world.velocity[1], self._dt)
         if contact:
-            what = _contact_kind(world, counts_before)
+            what = _contact_kind(world.contacts[-1])
             self._diagnostics.update(
                 WARN, f'collision {world.contact_events} ({what}) at t = {world.time:.2f} s, '
                       f'robot at ({world.pose[0]:.2f}, {world.pose[1]:.2f})',
@@ -813,18 +812,14 @@ class SimulatorNode(ManagedNode):
             real_time_factor=self._rtf, x=float(world.pose[0]), y=float(world.pose[1]))
 
 
-def _contact_kind(world, counts_before):
-    """What the contact event that began in the last step touched, in words for the log.
-
-    ``counts_before`` is ``(moving_contact_events, passive_contact_events)`` of the
-    world before that step.
-    """
-    moving, passive = counts_before
-    if world.moving_contact_events == moving:
+def _contact_kind(event):
+    """What a contact event (a ContactEvent) touched and how it was judged, in words for the log."""
+    if event.person is None:
         return 'with a wall or static obstacle'
-    if world.passive_contact_events > passive:
-        return 'with a moving obstacle, passive: the robot could not have escaped'
-    return 'with a moving obstacle'
+    if event.passive:
+        return f'with moving obstacle {event.person}, passive: the robot could not have escaped'
+    why = 'an escape existed' if event.escape else 'the robot was not standing or retreating'
+    return f'with moving obstacle {event.person}, avoidable: {why}'
 
 
 def main(args=None):

@@ -37,6 +37,57 @@ ESCAPE_HEADINGS = 16
 
 
 @dataclass(frozen=True)
+class ContactEvent:
+    """One contact event of a run and how it was judged.
+
+    Attributes
+    ----------
+    time_s : float
+        Simulated time [s] at the end of the step it began in.
+    position : tuple of float
+        The robot's centre ``(x, y)`` [m] then.
+    robot_speed_mps : float
+        How fast the robot's centre moved over that step [m/s]; for a step
+        refused at a static obstacle, the speed it drove at.
+    person : int or None
+        Index of the moving obstacle touched (the nearest to overlapping
+        the robot); None for a static obstacle (a refused step).
+    approach : float or None
+        Cosine of the angle between the robot's motion over that step and
+        the direction to the person: +1 driving straight at them, -1
+        straight away; None when the robot stood or the contact was static.
+    escape : bool or None
+        Whether some escape begun up to :data:`ESCAPE_HORIZON_S` earlier
+        would have kept the robot clear (:func:`could_escape`); None for a
+        static contact.
+    passive : bool
+        Not the robot's to avoid: it stood or retreated, and no escape
+        existed.
+    """
+
+    time_s: float
+    position: tuple
+    robot_speed_mps: float
+    person: int = None
+    approach: float = None
+    escape: bool = None
+    passive: bool = False
+
+    def summary(self):
+        """The JSON-ready fields (lengths and times rounded to the millimetre and millisecond)."""
+        return {
+            'time_s': round(self.time_s, 3),
+            'x_m': round(self.position[0], 3),
+            'y_m': round(self.position[1], 3),
+            'robot_speed_mps': round(self.robot_speed_mps, 3),
+            'person': self.person,
+            'approach': None if self.approach is None else round(self.approach, 3),
+            'escape': self.escape,
+            'passive': self.passive,
+        }
+
+
+@dataclass(frozen=True)
 class Snapshot:
     """The state of a run after one simulation step.
 

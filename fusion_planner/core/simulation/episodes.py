@@ -125,6 +125,10 @@ class EpisodeResult:
         Its key nodes.
     escape_points : ndarray, float64, shape (E, 2)
         Positions where the controller's status became ``'stuck_escaping'``.
+    contacts : tuple of ContactEvent
+        Every contact event, oldest first: where, how fast the robot moved,
+        whom it touched and how the contact was judged
+        (:class:`~fusion_planner.core.simulation.contact_blame.ContactEvent`).
     """
 
     scenario: str
@@ -152,6 +156,7 @@ class EpisodeResult:
     plan_path: np.ndarray = field(default=None, repr=False)
     key_nodes: np.ndarray = field(default=None, repr=False)
     escape_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
+    contacts: tuple = ()
 
     @property
     def time_ratio(self):
@@ -171,7 +176,10 @@ class EpisodeResult:
             ``failure`` (None or a reason), ``scenario``, ``family``,
             ``solvable``, ``controller``, ``perception``, ``seed``, ``plan_length_m``,
             ``moving_collisions``, ``passive_collisions``, ``no_path_proven_at_s``,
-            ``optimal_length_m``, ``optimal_time_s``, ``time_ratio``.
+            ``optimal_length_m``, ``optimal_time_s``, ``time_ratio``, and
+            ``contacts`` (one
+            :meth:`~fusion_planner.core.simulation.contact_blame.ContactEvent.summary` per
+            contact event).
         """
         return {
             'scenario': self.scenario,
@@ -196,6 +204,7 @@ class EpisodeResult:
             'optimal_length_m': _rounded(self.optimal_length_m),
             'optimal_time_s': _rounded(self.optimal_time_s),
             'time_ratio': _rounded(self.time_ratio),
+            'contacts': [event.summary() for event in self.contacts],
         }
 
 
@@ -417,7 +426,7 @@ def run_episode(scenario, controller_name, seed=None, record=True, plan=None,
         trajectory=np.array(trajectory).reshape(-1, 3) if record else None,
         obstacle_tracks=np.array(tracks).reshape(len(tracks), k, 2) if record else None,
         plan_path=plan_path if record else None, key_nodes=key_nodes if record else None,
-        escape_points=np.array(escapes).reshape(-1, 2))
+        escape_points=np.array(escapes).reshape(-1, 2), contacts=tuple(world.contacts))
 
 
 # -- batches -----------------------------------------------------------------------

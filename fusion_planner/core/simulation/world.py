@@ -35,7 +35,8 @@ Conventions
   when it could have stepped aside answers for the contact as much as one
   in motion (passive safety: a robot in motion answers for its contacts).
   Every other contact event is *avoidable*: a robot driving across a
-  person's way is in motion, not retreating.
+  person's way is in motion, not retreating. Each event is kept with how it
+  was judged (:attr:`World.contacts`).
 - Moving obstacles bounce off the static world (axis-separated reflection of
   their velocity). A bouncing or random-walking one also bounces off the
   other moving obstacles (its velocity reflected about the line of
@@ -77,7 +78,8 @@ import numpy as np
 from fusion_planner.core.errors import InvalidInput
 from fusion_planner.core.grid import GridMap
 from fusion_planner.core.simulation import ray_kernel
-from fusion_planner.core.simulation.contact_blame import ESCAPE_HORIZON_S, Snapshot, could_escape
+from fusion_planner.core.simulation.contact_blame import (ESCAPE_HORIZON_S, ContactEvent, Snapshot,
+                                                           could_escape)
 
 LOGGER = logging.getLogger(__name__)
 
@@ -773,6 +775,8 @@ class World:
         (not with a refused step into a static obstacle).
     passive_contact_events : int
         Those of them that were passive (see the module notes).
+    contacts : list of ContactEvent
+        Every contact event so far, oldest first, with how it was judged.
     in_contact : bool
         Whether the last step ended in contact.
     """
@@ -806,6 +810,7 @@ class World:
         self.contact_events = 0
         self.moving_contact_events = 0
         self.passive_contact_events = 0
+        self.contacts = []
         self.in_contact = False
         self._movers = [self._make_mover(spec) for spec in moving_obstacles]
         self._mover_radii = np.array([m.spec.radius for m in self._movers], float)
@@ -875,22 +880,31 @@ class World:
     def _overlaps_mover(self, p, r):
         return any(np.hypot(*(m.position - p)) < m.spec.radius + r for m in self._movers)
 
-    def _passive(self, before, dt):
-        """Whether a contact that began in the last step was passive (see the module notes).
+    def _judge_contact(self, before, dt, refused_speed):
+        """The record of a contact event that began in the last step (see the module notes).
 
-        ``before`` (2,) [m] is where the robot was a step ``dt`` [s] ago; the
-        contact is with the moving obstacle nearest to overlapping it now.
+        ``before`` (2,) [m] is where the robot was a step ``dt`` [s] ago;
+        ``refused_speed`` [m/s] is the speed of a step refused at a static
+        obstacle, None when the step was taken. A contact with people is
+        with the moving obstacle nearest to overlapping the robot now.
         """
-        gaps = [math.hypot(*(m.position - self.pose[:2])) - m.spec.radius for m in self._movers]
-        touched = int(np.argmin(gaps))
         velocity = (self.pose[:2] - before) / dt
         speed = math.hypot(velocity[0], velocity[1])
-        towards = self._movers[touched].position - self.pose[:2]
-        closing = float(velocity @ towards) / max(math.hypot(towards[0], towards[1]), 1e-9)
-        if speed >= AT_REST_MPS and closing > RETREAT_COSINE * speed:
-            return False
-        return not could_escape(self.static, self.robot, self._mover_radii,
-                                list(self._history), touched)
+        where = (float(self.pose[0]), float(self.pose[1]))
+        if refused_speed is not None:
+            return ContactEvent(self.time, where, refused_speed)
+        gaps = [math.hypot(*(m.position - self.pose[:2])) - m.spec.radius for m in self._movers]
+        touched = int(np.argmin(gaps))
+        approach = None
+        if speed >= AT_REST_MPS:
+            towards = self._movers[touched].position - self.pose[:2]
+            approach = float(velocity @ towards) / max(math.hypot(towards[0], towards[1]),
+                                                       1e-9) / speed
+        escape = could_escape(self.static, self.robot, self._mover_radii, list(self._history),
+                              touched)
+        retreating = approach is None or approach <= RETREAT_COSINE
+        return ContactEvent(self.time, where, speed, person=touched, approach=approach,
+                            escape=escape, passive=retreating and not escape)
 
     def _remember(self):
         """Record the state after a step; keep what an escape may start from."""
@@ -989,9 +1003,11 @@ class World:
         contact = blocked or self._overlaps_mover(self.pose[:2], spec.radius)
         started = contact and not self.in_contact
         if started:
+            event = self._judge_contact(before, dt, abs(v) if blocked else None)
+            self.contacts.append(event)
             self.contact_events += 1
             self.moving_contact_events += int(not blocked)
-            self.passive_contact_events += int(not blocked and self._passive(before, dt))
+            self.passive_contact_events += int(event.passive)
             LOGGER.debug('contact at t=%.2f s, pose %s', self.time, self.pose.round(3).tolist())
         self.in_contact = contact
         return started
