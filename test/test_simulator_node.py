@@ -29,6 +29,7 @@ from sensor_msgs.msg import LaserScan  # noqa: E402
 from visualization_msgs.msg import MarkerArray  # noqa: E402
 
 from fusion_planner.cli.demo_command import Spinner, shutdown_executor  # noqa: E402
+from fusion_planner.core.simulation.contact_blame import ContactEvent  # noqa: E402
 from fusion_planner.core.simulation.scenario import load_scenario  # noqa: E402
 from fusion_planner.ros import conversions as conv  # noqa: E402
 from fusion_planner.ros import fuzz  # noqa: E402
@@ -279,6 +280,17 @@ def test_a_collision_is_reported_with_what_the_robot_touched_and_where(probe):
     # of the message and the cell-centre distances) of an occupied cell
     assert scenario.grid.clearance_at([[x, y]])[0] <= scenario.robot.radius \
         + scenario.grid.resolution
+
+
+@pytest.mark.parametrize('escape, passive, judged', [
+    (False, True, 'passive: the robot could not have escaped'),
+    (True, False, 'avoidable: an escape existed'),
+    (False, False, 'avoidable: the robot was not standing or retreating'),
+])
+def test_a_contact_with_a_person_is_logged_with_how_it_was_judged(escape, passive, judged):
+    event = ContactEvent(3.0, (1.0, 2.0), 0.4, person=2, approach=0.9, escape=escape,
+                         passive=passive)
+    assert sim._contact_kind(event) == f'with moving obstacle 2, {judged}'
 
 
 def test_obstacle_markers_are_id_stable_cylinders_of_the_moving_obstacles(probe):
