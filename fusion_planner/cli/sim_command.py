@@ -35,8 +35,9 @@ Contract:
   retreated and could not have got out of the way),
   ``no_path_proven_at_s``, ``optimal_length_m``, ``optimal_time_s``,
   ``time_ratio`` and ``contacts`` (each contact event: where, how fast the
-  robot moved, whom it touched and how it was judged). A batch: ``scenarios``, ``family``, ``seed``,
-  ``wall_time_s``, ``controllers`` (per controller the fields of
+  robot moved, whom it touched and how it was judged). A batch:
+  ``scenarios``, ``family``, ``seed``, ``wall_time_s``, ``controllers``
+  (per controller the fields of
   :class:`~fusion_planner.core.simulation.episodes.ControllerSummary`) under
   the first perception, ``by_perception`` (the same per perception, when
   there are several) and

@@ -18,8 +18,8 @@ that counterfactual from a short record of the run:
   overlaps no person and no static obstacle.
 
 The people's paths do not depend on the robot, so the record is what they
-would have done whatever the robot did. Everything is in the map frame, SI
-units.
+would have done whatever the robot did. A :class:`ContactEvent` keeps one
+contact and how it was judged. Everything is in the map frame, SI units.
 """
 
 import math
@@ -74,7 +74,7 @@ class ContactEvent:
     passive: bool = False
 
     def summary(self):
-        """The JSON-ready fields (lengths and times rounded to the millimetre and millisecond)."""
+        """The JSON-ready fields, numbers rounded to three decimals."""
         return {
             'time_s': round(self.time_s, 3),
             'x_m': round(self.position[0], 3),
